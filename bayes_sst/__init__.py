@@ -1,0 +1,31 @@
+"""bayes_sst: Bayesian identification of a servo-hydraulic shaking table's force model.
+
+The pipeline reads as the package's folders: io (test series) -> signals (filtering,
+derivatives, steady cycles) -> physics (force model) -> inference (posterior) -> report.
+Heavy modules are imported on first use so that ``import bayes_sst`` and the command line
+start fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "load_series": "bayes_sst.io",
+    "write_series": "bayes_sst.io",
+    "SeriesFormatError": "bayes_sst.io",
+    "simulate": "bayes_sst.twin",
+    "fit": "bayes_sst.inference",
+    "summarize": "bayes_sst.inference",
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'bayes_sst' has no attribute {name!r}")
+
+
+__all__ = sorted(_LAZY)

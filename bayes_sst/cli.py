@@ -1,0 +1,124 @@
+"""The bayes-sst command line: one sub-command per task; heavy imports only once a task runs."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+_START = time.perf_counter()
+
+
+def _progress(message: str) -> None:
+    print(f"[{time.perf_counter() - _START:6.1f} s] {message}", file=sys.stderr, flush=True)
+
+
+def _cmd_simulate(args) -> int:
+    from bayes_sst.io import check_run_target, write_series
+    from bayes_sst.twin import simulate
+
+    check_run_target(args.out, overwrite=args.force)
+    _progress(f"simulating preset '{args.preset}' (seed {args.seed}) on the virtual table ...")
+    series = simulate(args.preset, seed=args.seed, spread=args.spread, name=args.name)
+    write_series(series, args.out, overwrite=args.force)
+    _progress(f"wrote {len(series.tests)} tests, {series.n_samples} samples to {args.out}")
+    return 0
+
+
+def _cmd_fit(args) -> int:
+    from bayes_sst.inference import fit
+    from bayes_sst.inference._summary import format_summary, summarize
+    from bayes_sst.io import check_run_target, load_series, write_run
+    from bayes_sst.signals import SignalOptions
+
+    check_run_target(args.out, overwrite=args.force)
+    started = time.perf_counter()
+    _progress(f"reading {args.series} ...")
+    series = load_series(args.series)
+    options = SignalOptions(cutoff_multiple=args.cutoff_multiple, reversal_band=args.reversal_band)
+    result = fit(
+        series,
+        chains=args.chains,
+        draws=args.draws,
+        warmup=args.warmup,
+        seed=args.seed,
+        prior=args.prior,
+        signals=options,
+        progress=_progress,
+    )
+    _progress("checking convergence and writing the run ...")
+    summary = summarize(result.tree, seconds=time.perf_counter() - started)
+    summary["command"] = " ".join(["bayes-sst"] + sys.argv[1:])
+    summary["timings"] = result.timings
+    text = format_summary(summary)
+    write_run(args.out, result.tree, summary, text, overwrite=args.force)
+    print(text)
+    for warning in summary["warnings"]:
+        print(f"WARNING: {warning}", file=sys.stderr)
+    _progress(f"run written to {args.out}")
+    return 0
+
+
+def _cmd_summary(args) -> int:
+    from bayes_sst.inference._summary import format_summary
+    from bayes_sst.io import read_run_summary
+
+    print(format_summary(read_run_summary(args.run)))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bayes-sst",
+        description="Bayesian identification of a shaking table's force model "
+        "F = Me*a + Ke*u + (Ce*|v|^alpha + Fmu)*sign(v) from periodic test series.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("simulate", help="write a synthetic test series from the virtual table")
+    p.add_argument("--preset", default="sst-paper", help="table preset (default sst-paper)")
+    p.add_argument("--out", required=True, help="series folder to create")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--spread", type=float, default=None, help="test-to-test relative sd of Me, Ke, Ce, Fmu")
+    p.add_argument("--name", default=None, help="series name (default from the preset)")
+    p.add_argument("--force", action="store_true", help="replace an existing folder")
+    p.set_defaults(handler=_cmd_simulate)
+
+    p = sub.add_parser("fit", help="posterior of Me, Ke, Ce, alpha, Fmu from a series folder")
+    p.add_argument("series", help="series folder (with series.json)")
+    p.add_argument("--out", required=True, help="run folder to create")
+    p.add_argument("--chains", type=int, default=4)
+    p.add_argument("--draws", type=int, default=500, help="draws per chain after warm-up")
+    p.add_argument("--warmup", type=int, default=500, help="warm-up iterations per chain")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--prior", choices=("generic", "physics"), default="generic",
+                   help="generic weak priors, or centred by the series' table description")
+    p.add_argument("--cutoff-multiple", type=float, default=4.0,
+                   help="low-pass cut-off as a multiple of each test's frequency (default 4)")
+    p.add_argument("--reversal-band", type=float, default=0.2,
+                   help="leave out samples slower than this share of the peak speed (default 0.2)")
+    p.add_argument("--force", action="store_true", help="replace an existing run folder")
+    p.set_defaults(handler=_cmd_fit)
+
+    p = sub.add_parser("summary", help="print the posterior summary of a run folder")
+    p.add_argument("run", help="run folder written by 'bayes-sst fit'")
+    p.set_defaults(handler=_cmd_summary)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    from bayes_sst.io import OutputExistsError, SeriesFormatError
+
+    try:
+        return args.handler(args)
+    except (SeriesFormatError, OutputExistsError, ValueError) as exc:
+        print(f"bayes-sst {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"bayes-sst {args.command}: interrupted; nothing was written", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

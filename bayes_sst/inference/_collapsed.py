@@ -1,0 +1,169 @@
+"""Collapsed likelihood of the hierarchical AR(1) force model, in pure JAX.
+
+Model, per test j (scaled units, see _statistics.py):
+
+    y_j = X_j(alpha) theta_j + e_j,     e_jt = phi_j e_j(t-1) + w_jt,   w ~ N(0, sigma_j^2)
+    theta_j ~ N(mu, T),  T = diag(rho^2)             (test-to-test variation)
+    mu ~ N(m0, S0),      S0 = diag(s0^2)             (population values)
+
+theta_j and mu enter linearly and with Gaussian priors, so both are integrated out exactly
+(a Rao-Blackwellised, "collapsed" model): the sampler explores only alpha, rho, phi_j,
+sigma_j, and theta_j, mu are drawn afterwards from their exact Gaussian conditionals.
+
+Per test, with A = X'X/sigma^2, b = X'y/sigma^2 (AR-whitened moments), D = diag(rho) and
+B = I + D A D (well conditioned for any rho >= 0):
+
+    log p(y_j | mu) = c_j + h_j' mu - 1/2 mu' H_j mu
+    c_j = -1/2 log|B| + 1/2 (Db)' B^-1 (Db) - n_j/2 log(2 pi sigma^2) - y'y/(2 sigma^2)
+    H_j = A - A D B^-1 D A          (= (A^-1 + T)^-1)
+    h_j = b - A D B^-1 D b          (= (I + A T)^-1 b)
+
+and with Q = S0^-1 + sum H_j, r = S0^-1 m0 + sum h_j:
+
+    log p(y | alpha, rho, phi, sigma) = sum c_j - 1/2 log|S0| - 1/2 log|Q|
+                                        + 1/2 r' Q^-1 r - 1/2 m0' S0^-1 m0
+    mu | rest ~ N(Q^-1 r, Q^-1),   theta_j | mu, rest ~ N(mu + P_j^-1 (b_j - A_j mu), P_j^-1),
+    P_j^-1 = D B_j^-1 D.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+import bayes_sst._jaxconfig  # noqa: F401  (float64 before any array)
+from bayes_sst.inference import _smalllinalg as sl
+
+LOG_2PI = 1.8378770664093453
+
+
+class MomentTable(NamedTuple):
+    """JAX view of LaggedMoments: grids of moments and slopes, (J, G, 3, 5, 5)."""
+
+    moments: jax.Array
+    slopes: jax.Array
+    n_pairs: jax.Array
+    alpha_start: float
+    alpha_step: float
+
+
+class TestTerms(NamedTuple):
+    """Per-test Gaussian pieces of the collapsed likelihood (see module docstring)."""
+
+    c: jax.Array  # (J,)
+    h: jax.Array  # (J, 4)
+    H: jax.Array  # (J, 4, 4)
+    A: jax.Array  # (J, 4, 4)
+    b: jax.Array  # (J, 4)
+    B_chol: jax.Array  # (J, 4, 4)
+
+
+def moments_at(table: MomentTable, alpha, xp=jnp):
+    """Cubic Hermite interpolation of the tabulated moments at alpha, (J, 3, 5, 5).
+
+    With s = (alpha - alpha_g)/step in [0, 1):
+    M(alpha) = h00 M_g + h10 step M'_g + h01 M_(g+1) + h11 step M'_(g+1).
+    """
+    n_grid = table.moments.shape[1]
+    position = (alpha - table.alpha_start) / table.alpha_step
+    g = xp.clip(xp.floor(position).astype(xp.int32), 0, n_grid - 2)
+    s = position - g
+    s2, s3 = s * s, s * s * s
+    h00 = 2 * s3 - 3 * s2 + 1
+    h10 = s3 - 2 * s2 + s
+    h01 = -2 * s3 + 3 * s2
+    h11 = s3 - s2
+    step = table.alpha_step
+    return (
+        h00 * table.moments[:, g]
+        + h10 * step * table.slopes[:, g]
+        + h01 * table.moments[:, g + 1]
+        + h11 * step * table.slopes[:, g + 1]
+    )
+
+
+def whitened_moments(moments, phi, xp=jnp):
+    """W_j = M0 - phi (M1 + M1') + phi^2 M2: moments of z_t - phi z_(t-1), (J, 5, 5)."""
+    m0, m1, m2 = moments[:, 0], moments[:, 1], moments[:, 2]
+    p = phi[:, None, None]
+    return m0 - p * (m1 + xp.swapaxes(m1, -1, -2)) + p * p * m2
+
+
+def test_terms(whitened, n_pairs, sigma, rho, xp=jnp) -> TestTerms:
+    """c_j, h_j, H_j of the module docstring, batched over tests.
+
+    With L the Cholesky factor of B and [G | g] = L^-1 [D A | D b], the pieces are
+    H = A - G'G, h = b - G'g, (Db)' B^-1 (Db) = g'g: one triangular solve with five columns.
+    """
+    var = sigma * sigma
+    yy = whitened[:, 0, 0]
+    A = whitened[:, 1:, 1:] / var[:, None, None]
+    b = whitened[:, 1:, 0] / var[:, None]
+    DA = rho[None, :, None] * A
+    B = xp.eye(4) + DA * rho[None, None, :]
+    B_chol = sl.cholesky(B, xp)
+    Gg = sl.solve_lower(B_chol, xp.concatenate([DA, (rho[None, :] * b)[:, :, None]], axis=-1), xp)
+    G, g = Gg[..., :4], Gg[..., 4]
+    H = A - xp.sum(G[:, :, :, None] * G[:, :, None, :], axis=1)
+    h = b - xp.sum(G * g[:, :, None], axis=1)
+    c = (
+        -0.5 * sl.log_det_from_cholesky(B_chol, xp)
+        + 0.5 * xp.sum(g * g, axis=-1)
+        - 0.5 * n_pairs * (LOG_2PI + 2.0 * xp.log(sigma))
+        - 0.5 * yy / var
+    )
+    return TestTerms(c=c, h=h, H=H, A=A, b=b, B_chol=B_chol)
+
+
+def population_posterior(terms: TestTerms, prior_mean, prior_sd, xp=jnp):
+    """Q and r of the Gaussian conditional mu | rest ~ N(Q^-1 r, Q^-1)."""
+    prior_precision = 1.0 / (prior_sd * prior_sd)
+    Q = xp.diag(prior_precision) + xp.sum(terms.H, axis=0)
+    r = prior_precision * prior_mean + xp.sum(terms.h, axis=0)
+    return Q, r
+
+
+def _terms(table, alpha, rho, phi, sigma, xp):
+    return test_terms(
+        whitened_moments(moments_at(table, alpha, xp), phi, xp), table.n_pairs, sigma, rho, xp
+    )
+
+
+def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp):
+    """log p(y | alpha, rho, phi, sigma) with every theta_j and mu integrated out (scaled units)."""
+    terms = _terms(table, alpha, rho, phi, sigma, xp)
+    Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
+    Q_chol = sl.cholesky(Q, xp)
+    Qinv_r = sl.cho_solve(Q_chol, r, xp)
+    prior_precision = 1.0 / (prior_sd * prior_sd)
+    return (
+        xp.sum(terms.c)
+        - xp.sum(xp.log(prior_sd))
+        - 0.5 * sl.log_det_from_cholesky(Q_chol, xp)
+        + 0.5 * xp.sum(r * Qinv_r)
+        - 0.5 * xp.sum(prior_precision * prior_mean * prior_mean)
+    )
+
+
+def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
+                      prior_mean, prior_sd, xp=jnp):
+    """An exact draw of mu and every theta_j given the sampled parameters, from standard
+    normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
+    log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j) (scaled units)."""
+    terms = _terms(table, alpha, rho, phi, sigma, xp)
+    Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
+    Q_chol = sl.cholesky(Q, xp)
+    # mu = Q^-1 r + L^-T z has covariance Q^-1
+    mu = sl.cho_solve(Q_chol, r, xp) + sl.solve_upper_transposed(Q_chol, normal_mu, xp)
+    residual = terms.b - xp.sum(terms.A * mu[None, None, :], axis=-1)
+    # theta_j = mu + D B^-1 D (b - A mu) + D L^-T z has covariance D B^-1 D
+    theta = (
+        mu[None, :]
+        + rho * sl.cho_solve(terms.B_chol, rho * residual, xp)
+        + rho * sl.solve_upper_transposed(terms.B_chol, normal_theta, xp)
+    )
+    Hmu = xp.sum(terms.H * mu[None, None, :], axis=-1)
+    per_test = terms.c + xp.sum(terms.h * mu, axis=-1) - 0.5 * xp.sum(mu * Hmu, axis=-1)
+    return mu, theta, per_test

@@ -1,0 +1,137 @@
+"""Turning sampler output into a labelled ArviZ DataTree in SI units."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+
+import numpy as np
+import xarray as xr
+
+from bayes_sst.inference._statistics import COEFFICIENTS
+
+
+def _padded(arrays, fill=np.nan):
+    width = max(len(a) for a in arrays)
+    out = np.full((len(arrays), width), fill, dtype=float)
+    for i, a in enumerate(arrays):
+        out[i, : len(a)] = a
+    return out
+
+
+def build_tree(seed, samples, extra, table, scaled, moments, prepared, priors, settings, series):
+    """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
+    from bayes_sst.inference._collapsed import MomentTable, draw_coefficients
+
+    chains, draws = samples["alpha"].shape
+    flat = {name: np.reshape(np.asarray(value), (chains * draws,) + value.shape[2:]) for name, value in samples.items()}
+    n_draws, n_tests = chains * draws, moments.n_tests
+    # numpy, draw by draw: the same equations as the sampler's, without an XLA compilation
+    host_table = MomentTable(
+        moments=np.asarray(table.moments), slopes=np.asarray(table.slopes),
+        n_pairs=np.asarray(table.n_pairs), alpha_start=table.alpha_start, alpha_step=table.alpha_step,
+    )
+    prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
+    rng = np.random.default_rng(seed)
+    normal_mu = rng.standard_normal((n_draws, 4))
+    normal_theta = rng.standard_normal((n_draws, n_tests, 4))
+    mu = np.empty((n_draws, 4))
+    theta = np.empty((n_draws, n_tests, 4))
+    per_test = np.empty((n_draws, n_tests))
+    for i in range(n_draws):
+        mu[i], theta[i], per_test[i] = draw_coefficients(
+            normal_mu[i], normal_theta[i], host_table, flat["alpha"][i], flat["spread"][i],
+            flat["phi"][i], flat["sigma"][i], prior_mean, prior_sd, xp=np,
+        )
+    scale = moments.coefficient_scale
+    mu = mu * scale
+    theta = theta * scale
+    log_lik = per_test - moments.n_pairs * np.log(moments.force_scale)
+
+    def shaped(x):
+        return np.reshape(x, (chains, draws) + x.shape[1:])
+
+    test_ids = list(moments.test_ids)
+    coords = {"chain": np.arange(chains), "draw": np.arange(draws), "test": test_ids, "coefficient": list(COEFFICIENTS)}
+    posterior = {}
+    for k, name in enumerate(COEFFICIENTS):
+        posterior[name] = (("chain", "draw"), shaped(mu[:, k]))
+    posterior["alpha"] = (("chain", "draw"), np.asarray(samples["alpha"]))
+    posterior["between_test_sd"] = (
+        ("chain", "draw", "coefficient"),
+        np.asarray(samples["spread"]) * scale,
+    )
+    for k, name in enumerate(COEFFICIENTS):
+        posterior[f"{name}_test"] = (("chain", "draw", "test"), shaped(theta[:, :, k]))
+    posterior["phi"] = (("chain", "draw", "test"), np.asarray(samples["phi"]))
+    posterior["sigma"] = (("chain", "draw", "test"), np.asarray(samples["sigma"]) * moments.force_scale)
+    units = {
+        "Me": "kg", "Ke": "N/m", "Ce": "N/(m/s)^alpha", "Fmu": "N", "alpha": "1",
+        "between_test_sd": "SI units of each coefficient", "sigma": "N", "phi": "1",
+    }
+    post_ds = xr.Dataset(posterior, coords={k: coords[k] for k in ("chain", "draw", "test", "coefficient")})
+    for name, unit in units.items():
+        post_ds[name].attrs["units"] = unit
+
+    diverging = np.asarray(extra["diverging"])
+    n_steps = np.asarray(extra["num_steps"])
+    stats_ds = xr.Dataset(
+        {
+            "diverging": (("chain", "draw"), diverging.astype(bool)),
+            "n_steps": (("chain", "draw"), n_steps.astype(int)),
+            "tree_depth": (("chain", "draw"), np.ceil(np.log2(n_steps + 1)).astype(int)),
+            "reached_max_treedepth": (("chain", "draw"), n_steps >= 2**settings.max_tree_depth - 1),
+            "acceptance_rate": (("chain", "draw"), np.asarray(extra["accept_prob"])),
+            "energy": (("chain", "draw"), np.asarray(extra["energy"])),
+            "lp": (("chain", "draw"), -np.asarray(extra["potential_energy"])),
+            "step_size": (("chain", "draw"), np.asarray(extra["adapt_state.step_size"])),
+        },
+        coords={"chain": coords["chain"], "draw": coords["draw"]},
+    )
+    loglik_ds = xr.Dataset(
+        {"F": (("chain", "draw", "test"), shaped(log_lik))},
+        coords={"chain": coords["chain"], "draw": coords["draw"], "test": test_ids},
+    )
+    loglik_ds["F"].attrs["meaning"] = "log p(force of test | population values), test coefficients integrated out"
+    observed = xr.Dataset(
+        {"F": (("test", "sample"), _padded([t.F for t in prepared]))},
+        coords={"test": test_ids},
+    )
+    observed["F"].attrs["meaning"] = "force after the zero-phase low-pass, at the kept (decimated) samples, N"
+    constant = xr.Dataset(
+        {
+            "t": (("test", "sample"), _padded([t.t for t in prepared])),
+            "u": (("test", "sample"), _padded([t.u for t in prepared])),
+            "v": (("test", "sample"), _padded([t.v for t in prepared])),
+            "a": (("test", "sample"), _padded([t.a for t in prepared])),
+            "keep": (("test", "sample"), _padded([t.keep.astype(float) for t in prepared], fill=0.0)),
+            "frequency_hz": (("test",), np.array([t.frequency_hz for t in prepared])),
+            "amplitude_m": (("test",), np.array([t.amplitude_m for t in prepared])),
+            "payload_kg": (("test",), np.array([t.payload_kg for t in prepared])),
+            "kind": (("test",), np.array([t.kind for t in prepared])),
+            "cutoff_hz": (("test",), np.array([t.cutoff_hz for t in prepared])),
+            "n_cycles": (("test",), np.array([t.window.n_cycles for t in prepared])),
+            "recorded_samples": (("test",), np.array([t.window.stop - t.window.start for t in prepared])),
+        },
+        coords={"test": test_ids},
+    )
+    from bayes_sst import __version__
+
+    attrs = {
+        "series": series.name,
+        "bayes_sst_version": __version__,
+        "sampler": json.dumps(asdict(settings)),
+        "priors": json.dumps(priors.describe()),
+        "model": "hierarchical power-law damping + Coulomb friction, AR(1) residuals, coefficients collapsed",
+    }
+    tree = xr.DataTree.from_dict(
+        {
+            "posterior": post_ds,
+            "sample_stats": stats_ds,
+            "log_likelihood": loglik_ds,
+            "observed_data": observed,
+            "constant_data": constant,
+        }
+    )
+    tree.attrs.update(attrs)
+    return tree

@@ -1,0 +1,121 @@
+"""Posterior summaries: the numbers of summary.json and the text a lab engineer reads."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bayes_sst.inference._statistics import COEFFICIENTS
+from bayes_sst.reference import PUBLISHED_SST
+
+POPULATION = ("Me", "Ke", "Ce", "alpha", "Fmu")
+RHAT_LIMIT = 1.01
+ESS_LIMIT = 400
+
+# (scale, unit) for display; files stay in SI
+DISPLAY = {
+    "Me": (1e-3, "t"),
+    "Ke": (1e-3, "kN/m"),
+    "Ce": (1e-3, "kN/(m/s)^a"),
+    "alpha": (1.0, "-"),
+    "Fmu": (1e-3, "kN"),
+}
+
+
+def summarize(tree, *, seconds: float | None = None) -> dict:
+    """summary.json content: population parameters (SI), convergence checks and warnings."""
+    from arviz_stats import ess, rhat
+
+    posterior = tree["posterior"].to_dataset()
+    stats = tree["sample_stats"].to_dataset()
+    r_hat = rhat(tree, var_names=list(POPULATION) + ["between_test_sd"])
+    ess_bulk = ess(tree, var_names=list(POPULATION) + ["between_test_sd"], method="bulk")
+    ess_tail = ess(tree, var_names=list(POPULATION), method="tail")
+    parameters = {}
+    for name in POPULATION:
+        x = posterior[name].values.ravel()
+        q05, q50, q95 = np.quantile(x, [0.05, 0.5, 0.95])
+        parameters[name] = {
+            "mean": float(x.mean()),
+            "sd": float(x.std(ddof=1)),
+            "q05": float(q05),
+            "q50": float(q50),
+            "q95": float(q95),
+            "r_hat": float(r_hat[name]),
+            "ess_bulk": float(ess_bulk[name]),
+            "ess_tail": float(ess_tail[name]),
+        }
+    spread = {}
+    between = posterior["between_test_sd"]
+    for k, name in enumerate(COEFFICIENTS):
+        relative = (between.isel(coefficient=k) / np.abs(posterior[name])).values.ravel()
+        spread[name] = {
+            "relative_sd_mean": float(relative.mean()),
+            "relative_sd_q05": float(np.quantile(relative, 0.05)),
+            "relative_sd_q95": float(np.quantile(relative, 0.95)),
+        }
+    divergences = int(stats["diverging"].values.sum())
+    worst_rhat = max(float(r_hat[v].max()) for v in r_hat.data_vars)
+    least_ess = min(float(ess_bulk[v].min()) for v in ess_bulk.data_vars)
+    saturated = int(stats["reached_max_treedepth"].values.sum()) if "reached_max_treedepth" in stats else 0
+    warnings = []
+    if divergences:
+        warnings.append(f"{divergences} divergent transitions: the posterior may be biased; rerun with more warm-up")
+    if worst_rhat > RHAT_LIMIT:
+        warnings.append(f"R-hat {worst_rhat:.3f} exceeds {RHAT_LIMIT}: chains disagree; do not trust the numbers")
+    if least_ess < ESS_LIMIT:
+        warnings.append(f"bulk ESS {least_ess:.0f} is below {ESS_LIMIT}: draw more samples")
+    if saturated:
+        warnings.append(f"{saturated} transitions hit the maximum tree depth")
+    n_tests = int(posterior.sizes["test"])
+    n_samples = int(tree["constant_data"]["recorded_samples"].values.sum())
+    return {
+        "series": tree.attrs.get("series", ""),
+        "parameters": parameters,
+        "between_test_spread": spread,
+        "divergences": divergences,
+        "max_r_hat": worst_rhat,
+        "min_ess_bulk": least_ess,
+        "converged": not warnings,
+        "warnings": warnings,
+        "n_tests": n_tests,
+        "n_samples": n_samples,
+        "n_likelihood_samples": int(tree["constant_data"]["keep"].values.sum()),
+        "seconds": seconds,
+    }
+
+
+def format_summary(summary: dict) -> str:
+    """The human-readable summary: kN, t, 90 % intervals, the published point estimates."""
+    lines = [
+        f"bayes_sst posterior for series '{summary.get('series', '')}': "
+        f"{summary['n_tests']} tests, {summary['n_samples']} recorded samples"
+        + (f", {summary['seconds']:.1f} s" if summary.get("seconds") else ""),
+        "",
+    ]
+    if summary["warnings"]:
+        lines.append("!! WARNING: the sampler did not pass its checks !!")
+        lines += [f"!!   {w}" for w in summary["warnings"]]
+        lines.append("")
+    header = f"{'parameter':<10}{'unit':<12}{'mean':>10}{'sd':>9}{'5%':>10}{'95%':>10}{'published':>11}{'r_hat':>7}{'ess':>7}"
+    lines += [header, "-" * len(header)]
+    for name, p in summary["parameters"].items():
+        scale, unit = DISPLAY[name]
+        published = PUBLISHED_SST.get(name)
+        lines.append(
+            f"{name:<10}{unit:<12}{p['mean'] * scale:>10.4g}{p['sd'] * scale:>9.3g}"
+            f"{p['q05'] * scale:>10.4g}{p['q95'] * scale:>10.4g}"
+            f"{(published * scale if published is not None else float('nan')):>11.4g}"
+            f"{p['r_hat']:>7.3f}{p['ess_bulk']:>7.0f}"
+        )
+    lines.append("")
+    lines.append("between-test spread (sd relative to the population value, mean [90% interval]):")
+    for name, s in summary["between_test_spread"].items():
+        lines.append(
+            f"  {name:<5}{100 * s['relative_sd_mean']:6.2f} %  [{100 * s['relative_sd_q05']:.2f}, {100 * s['relative_sd_q95']:.2f}] %"
+        )
+    lines.append("")
+    lines.append(
+        f"divergences {summary['divergences']}, max R-hat {summary['max_r_hat']:.3f}, "
+        f"min bulk ESS {summary['min_ess_bulk']:.0f}: " + ("converged" if summary["converged"] else "NOT CONVERGED")
+    )
+    return "\n".join(lines)

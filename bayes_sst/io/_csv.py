@@ -1,0 +1,216 @@
+"""Read one test's CSV into float64 columns and check its time axis.
+
+Reading has two passes. The fast one hands the whole body to numpy's C parser; it succeeds
+on every well-formed file. Only when it fails does a slow, row-by-row pass run, whose job is
+to find the first bad row and column and say what is wrong there (numpy's own message counts
+data rows from 0 and does not know the column names). Rows are numbered as a text editor
+would show them: the header is row 1.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ._errors import SeriesFormatError
+from ._series import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
+
+KNOWN_COLUMNS = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+# Relative difference from the median step above which the sampling counts as non-uniform.
+UNIFORM_RTOL = 1e-3
+
+# What a careful reader accepts as a number: a plain decimal or scientific literal, nan or
+# inf. Stricter than float(), which also takes "1_000".
+_NUMBER = re.compile(
+    r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf(?:inity)?)\s*", re.IGNORECASE
+)
+
+
+def format_number(x: float) -> str:
+    """A float for an error message: exact enough to find it in the file, short enough to read."""
+    return f"{x:.10g}"
+
+
+@dataclass
+class CsvTable:
+    """Columns of one CSV, with the map from sample index back to row number in the file."""
+
+    path: Path
+    columns: dict[str, np.ndarray]
+    lines: list[str] = field(repr=False)
+    _rows: np.ndarray | None = field(default=None, repr=False)
+
+    def row_of(self, index: int) -> int:
+        """Row number in the file (header = 1) of sample `index`."""
+        if self._rows is None:
+            # Built only for error messages; blank lines are skipped by both readers, so
+            # sample i is not always on row i + 2.
+            self._rows = np.array(
+                [n for n, line in enumerate(self.lines[1:], start=2) if line.strip()]
+            )
+        return int(self._rows[index])
+
+    @property
+    def n_rows(self) -> int:
+        return int(next(iter(self.columns.values())).shape[0])
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise SeriesFormatError(path, f"byte {exc.start}", "not UTF-8 text") from None
+    except OSError as exc:
+        raise SeriesFormatError(path, "", f"cannot be read: {exc.strerror or exc}") from None
+
+
+def _header(path: Path, line: str) -> list[str]:
+    # Spreadsheet exports often quote the names; the names themselves never contain quotes.
+    names = [cell.strip().strip('"').strip() for cell in line.split(",")]
+    if not line.strip():
+        raise SeriesFormatError(path, "row 1", "is empty; expected the header row naming the columns")
+    if all(_NUMBER.fullmatch(name) for name in names):
+        raise SeriesFormatError(
+            path, "row 1", f"holds numbers ({line.strip()[:40]}), not a header naming the columns"
+        )
+    for k, name in enumerate(names):
+        if not name:
+            raise SeriesFormatError(path, f"row 1, column {k + 1}", "the header leaves this column unnamed")
+        if name in names[:k]:
+            raise SeriesFormatError(path, f"column {name!r}", "is named twice in the header")
+    found = ", ".join(repr(n) for n in names)
+    for name in REQUIRED_COLUMNS:
+        if name not in names:
+            raise SeriesFormatError(
+                path, f"column {name!r}", f"required column is missing; columns found: {found}"
+            )
+    return names
+
+
+def _fast(body: list[str], n_columns: int) -> np.ndarray | None:
+    try:
+        with warnings.catch_warnings():
+            # An all-blank body makes loadtxt warn; the row count is checked later anyway.
+            warnings.simplefilter("ignore")
+            data = np.loadtxt(body, delimiter=",", comments=None, ndmin=2, dtype=np.float64)
+    except ValueError:
+        return None
+    if data.shape[0] and data.shape[1] != n_columns:
+        return None
+    return data.reshape(-1, n_columns)
+
+
+def _careful(path: Path, lines: list[str], names: list[str]) -> dict[str, np.ndarray]:
+    n = len(names)
+    values: list[list[float]] = [[] for _ in names]
+    text_columns: set[int] = set()
+    for row, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        cells = line.split(",")
+        if len(cells) != n:
+            raise SeriesFormatError(
+                path, f"row {row}",
+                f"has {len(cells)} fields but the header names {n} columns (ragged row)",
+            )
+        for k, cell in enumerate(cells):
+            if k in text_columns:
+                continue
+            if _NUMBER.fullmatch(cell):
+                values[k].append(float(cell))
+            elif names[k] in KNOWN_COLUMNS:
+                what = "empty cell" if not cell.strip() else f"{cell.strip()!r} is not a number"
+                raise SeriesFormatError(path, f"row {row}, column {names[k]!r}", what)
+            else:
+                # Columns the format does not define are ignored, so text in them is no fault.
+                text_columns.add(k)
+    return {
+        name: np.asarray(values[k], dtype=np.float64)
+        for k, name in enumerate(names)
+        if k not in text_columns
+    }
+
+
+def read_csv(path: Path) -> CsvTable:
+    """Read a test's CSV and check its header, cells and the finiteness of known columns.
+
+    Parameters
+    ----------
+    path : Path
+        The CSV file.
+
+    Returns
+    -------
+    CsvTable
+        One float64 array per numeric column, all of equal length.
+
+    Raises
+    ------
+    SeriesFormatError
+        Empty file, no header, missing required column, ragged row, non-numeric cell in a
+        known column, NaN or infinity in a known column, or fewer than 2 rows.
+    """
+    lines = _read_text(path).splitlines()
+    if not any(line.strip() for line in lines):
+        raise SeriesFormatError(path, "", "the file is empty; expected a header row and data rows")
+    names = _header(path, lines[0])
+    data = _fast(lines[1:], len(names))
+    if data is None:
+        columns = _careful(path, lines, names)
+    else:
+        # One contiguous array per column rather than strided views into the row-major block.
+        block = np.ascontiguousarray(data.T)
+        columns = {name: block[k] for k, name in enumerate(names)}
+    table = CsvTable(path, columns, lines)
+    if table.n_rows < 2:
+        raise SeriesFormatError(
+            path, "rows", f"has {table.n_rows} data row(s); at least 2 are needed"
+        )
+    for name in KNOWN_COLUMNS:
+        column = columns.get(name)
+        if column is None:
+            continue
+        bad = np.flatnonzero(~np.isfinite(column))
+        if bad.size:
+            i = int(bad[0])
+            raise SeriesFormatError(
+                path, f"row {table.row_of(i)}, column {name!r}",
+                f"value {format_number(column[i])} is not finite ({bad.size} such cell(s) in the column)",
+            )
+    return table
+
+
+def check_time(table: CsvTable) -> float:
+    """Check that time strictly increases at a uniform rate; return the median step in s.
+
+    Raises
+    ------
+    SeriesFormatError
+        A step is zero or negative, or differs from the median step by more than
+        `UNIFORM_RTOL` relative.
+    """
+    t = table.columns["t"]
+    steps = np.diff(t)
+    backwards = np.flatnonzero(steps <= 0)
+    if backwards.size:
+        i = int(backwards[0]) + 1
+        raise SeriesFormatError(
+            table.path, f"row {table.row_of(i)}, column 't'",
+            f"time {format_number(t[i])} does not come after {format_number(t[i - 1])} on row "
+            f"{table.row_of(i - 1)}; time must strictly increase",
+        )
+    step = float(np.median(steps))
+    uneven = np.flatnonzero(np.abs(steps - step) > UNIFORM_RTOL * step)
+    if uneven.size:
+        i = int(uneven[0]) + 1
+        raise SeriesFormatError(
+            table.path, f"row {table.row_of(i)}, column 't'",
+            f"time step {format_number(steps[i - 1])} s (from t = {format_number(t[i - 1])} to {format_number(t[i])}) "
+            f"differs from the median step {format_number(step)} s by more than {UNIFORM_RTOL:.1%}; "
+            "sampling must be uniform",
+        )
+    return step

@@ -1,0 +1,98 @@
+"""In-memory form of a test series (see docs/data_format.md)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+FORMAT_ID = "sst-series/1"
+TEST_KINDS = ("sine", "triangle", "broadband")
+PERIODIC_KINDS = ("sine", "triangle")
+REQUIRED_COLUMNS = ("t", "u", "F")
+OPTIONAL_COLUMNS = ("a", "v", "u_cmd", "a_cmd")
+
+
+@dataclass(frozen=True)
+class TestSpec:
+    """One entry of the manifest's ``tests`` list (SI units)."""
+
+    __test__ = False  # not a pytest test class, despite the name
+
+    id: str
+    file: str
+    kind: str
+    frequency_hz: float | None = None
+    amplitude_m: float | None = None
+    payload_kg: float = 0.0
+    order: int | None = None
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def is_periodic(self) -> bool:
+        return self.kind in PERIODIC_KINDS
+
+
+@dataclass(frozen=True)
+class TestRecord:
+    """A test's manifest entry and its sampled columns, each a float64 array of equal length."""
+
+    __test__ = False  # not a pytest test class, despite the name
+
+    spec: TestSpec
+    columns: Mapping[str, np.ndarray]
+
+    @property
+    def id(self) -> str:
+        return self.spec.id
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.columns["t"]
+
+    @property
+    def u(self) -> np.ndarray:
+        return self.columns["u"]
+
+    @property
+    def F(self) -> np.ndarray:
+        return self.columns["F"]
+
+    def get(self, name: str) -> np.ndarray | None:
+        """A column by name, or None when the test did not record it."""
+        return self.columns.get(name)
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return 1.0 / float(self.t[1] - self.t[0])
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+
+@dataclass(frozen=True)
+class Series:
+    """A named campaign of tests on one table, with the table's nominal description."""
+
+    name: str
+    tests: tuple[TestRecord, ...]
+    table: Mapping[str, Any] = field(default_factory=dict)
+    path: Path | None = None
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def periodic_tests(self) -> tuple[TestRecord, ...]:
+        return tuple(t for t in self.tests if t.spec.is_periodic)
+
+    def test(self, test_id: str) -> TestRecord:
+        for record in self.tests:
+            if record.id == test_id:
+                return record
+        raise KeyError(test_id)
+
+    @property
+    def n_samples(self) -> int:
+        return sum(t.n_samples for t in self.tests)

@@ -1,0 +1,25 @@
+"""Signals: filtering, derivatives, steady-state cycles and the likelihood's sample set."""
+
+from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, steady_cycles
+from bayes_sst.signals._filters import lowpass_sos, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._prepare import (
+    MIN_STEADY_CYCLES,
+    PreparedTest,
+    SignalOptions,
+    prepare_series,
+    prepare_test,
+)
+
+__all__ = [
+    "MIN_STEADY_CYCLES",
+    "CycleWindow",
+    "PreparedTest",
+    "SignalOptions",
+    "fundamental_phase",
+    "lowpass_sos",
+    "prepare_series",
+    "prepare_test",
+    "steady_cycles",
+    "time_derivative",
+    "zero_phase_lowpass",
+]

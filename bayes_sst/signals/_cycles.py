@@ -1,0 +1,79 @@
+"""Locating the whole steady-state cycles of a periodic test."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class CycleWindow(NamedTuple):
+    """Whole steady cycles: samples [start, stop) hold n_cycles periods of the test frequency.
+
+    Cycle m begins at start + m*period_samples, where the fundamental of u crosses zero
+    going up, so u is positive over the first half of every cycle.
+    """
+
+    start: int
+    stop: int
+    n_cycles: int
+    period_samples: float
+    amplitude: float
+
+
+def fundamental_phase(x, t, frequency_hz: float) -> tuple[float, float]:
+    """Amplitude A and phase phi of the best fit x ~ A*sin(2*pi*f*t + phi) + offset."""
+    omega = 2.0 * np.pi * frequency_hz
+    design = np.column_stack([np.sin(omega * t), np.cos(omega * t), np.ones_like(t)])
+    (s, c, _), *_ = np.linalg.lstsq(design, x, rcond=None)
+    return float(np.hypot(s, c)), float(np.arctan2(c, s))
+
+
+def steady_cycles(
+    u_filtered,
+    t,
+    frequency_hz: float,
+    *,
+    tolerance: float = 0.025,
+    skip_cycles: int = 0,
+) -> CycleWindow | None:
+    """The longest run of whole cycles whose amplitude is within `tolerance` of the plateau.
+
+    The plateau amplitude is the median half peak-to-peak of the cycles that reach at least
+    half the largest one, so ramp-in and ramp-out cycles (smaller) fall outside the run.
+    Returns None when not a single steady cycle is found.
+    """
+    u_filtered = np.asarray(u_filtered, dtype=float)
+    t = np.asarray(t, dtype=float)
+    fs = 1.0 / (t[1] - t[0])
+    period = fs / frequency_hz
+    _, phase = fundamental_phase(u_filtered, t, frequency_hz)
+    # first upward crossing of the fundamental at or after the first sample
+    omega = 2.0 * np.pi * frequency_hz
+    first_time = ((-phase) % (2.0 * np.pi)) / omega + t[0]
+    first = (first_time - t[0]) * fs
+    starts = first + period * np.arange(int((len(t) - first) // period) + 1)
+    starts = starts[starts + period <= len(t)]
+    if len(starts) == 0:
+        return None
+    begin = np.rint(starts).astype(int)
+    end = np.minimum(np.rint(starts + period).astype(int), len(t))
+    amplitudes = np.array([0.5 * np.ptp(u_filtered[b:e]) for b, e in zip(begin, end)])
+    large = amplitudes >= 0.5 * amplitudes.max()
+    plateau = float(np.median(amplitudes[large]))
+    steady = np.abs(amplitudes - plateau) <= tolerance * plateau
+    best_start, best_len, run_start = 0, 0, None
+    for i, ok in enumerate(np.append(steady, False)):
+        if ok and run_start is None:
+            run_start = i
+        elif not ok and run_start is not None:
+            if i - run_start > best_len:
+                best_start, best_len = run_start, i - run_start
+            run_start = None
+    best_start += skip_cycles
+    best_len -= skip_cycles
+    if best_len <= 0:
+        return None
+    first_sample = begin[best_start]
+    last_sample = end[best_start + best_len - 1]
+    return CycleWindow(int(first_sample), int(last_sample), int(best_len), float(period), plateau)

@@ -1,0 +1,182 @@
+"""From a recorded test to the filtered, trimmed, decimated signals the likelihood sees.
+
+Treatment, for each periodic test of fundamental f sampled at fs:
+
+1. Band. A zero-phase Butterworth low-pass at fc = cutoff_multiple*f (the study uses 4f)
+   cleans the displacement; velocity is its time derivative, acceleration the filtered
+   measured `a` when recorded (else the derivative of velocity).
+2. Consistent filtering. The force is filtered with the same fc, and so is every regressor
+   of the model: filter(a) and filter(u) are the filtered signals themselves (a filter
+   commutes with differentiation), and the velocity regressors |v|^alpha*sign(v) and sign(v)
+   are built at the recorded rate and then filtered. Because the force model is linear in
+   Me, Ke, Ce, Fmu, filter(F) = Me*filter(a) + Ke*filter(u) + ... holds exactly, so the
+   friction step, which a low-pass smears over about 1/fc, is predicted in its smeared form
+   instead of being fought as a residual.
+3. Velocity reversals. sign(v) is taken from the filtered velocity, whose zero crossings noise
+   cannot multiply: a whole cycle has exactly two. Samples whose filtered speed is below
+   reversal_band times the cycle's peak speed are left out of the likelihood: there the
+   table may stick, static friction exceeds kinetic friction, and the Coulomb step is not the
+   physics.
+4. Steady state. Only the longest run of whole cycles whose amplitude sits on the plateau
+   enters; ramp-in and ramp-out cycles are trimmed.
+5. Decimation. Inside the steady window every D-th sample is kept, D chosen so the kept
+   rate is about 2*fc: the filtered residual is then close to white over the kept band and
+   an AR(1) term can model what colour remains, instead of facing the steep roll-off of a
+   heavily oversampled filtered signal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from bayes_sst.io import Series, SeriesFormatError, TestRecord
+from bayes_sst.signals._cycles import CycleWindow, steady_cycles
+from bayes_sst.signals._filters import time_derivative, zero_phase_lowpass
+
+MIN_STEADY_CYCLES = 3
+
+
+@dataclass(frozen=True)
+class SignalOptions:
+    """Settings of the signal treatment (see the module docstring).
+
+    cutoff_multiple : low-pass cut-off as a multiple of the test frequency.
+    reversal_band : samples with |v| below this share of the peak speed are left out.
+    steady_tolerance : relative amplitude band that defines a steady cycle.
+    skip_cycles : steady cycles dropped at the start of the run (settling).
+    samples_per_cutoff : kept samples per 1/fc; 2 puts the kept Nyquist frequency at fc.
+    """
+
+    cutoff_multiple: float = 4.0
+    reversal_band: float = 0.2
+    steady_tolerance: float = 0.025
+    skip_cycles: int = 0
+    samples_per_cutoff: float = 2.0
+
+
+@dataclass(frozen=True)
+class PreparedTest:
+    """A periodic test ready for the likelihood.
+
+    Arrays named like the model (t, F, u, v, a) hold the kept, filtered samples; `keep` marks
+    those that enter the likelihood (outside the reversal band). `velocity_full` is the
+    filtered velocity at the recorded rate, from which velocity regressors are rebuilt and
+    filtered exactly like the force (see `regressor`).
+    """
+
+    id: str
+    file: str
+    kind: str
+    frequency_hz: float
+    amplitude_m: float
+    payload_kg: float
+    order: int | None
+    sample_rate_hz: float
+    cutoff_hz: float
+    decimation: int
+    window: CycleWindow
+    index: np.ndarray
+    t: np.ndarray
+    F: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    keep: np.ndarray
+    velocity_full: np.ndarray
+
+    @property
+    def n_kept(self) -> int:
+        return int(self.keep.sum())
+
+    def regressor(self, of_velocity: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+        """filter(g(v))[index]: a velocity regressor treated exactly as the force was.
+
+        `of_velocity` maps an array of velocities (any leading axes are allowed in its
+        output, the last axis being time) to regressor values.
+        """
+        values = of_velocity(self.velocity_full)
+        filtered = zero_phase_lowpass(values, self.cutoff_hz, self.sample_rate_hz, axis=-1)
+        return filtered[..., self.index]
+
+    @property
+    def friction_sign(self) -> np.ndarray:
+        """filter(sign(v)) at the kept samples."""
+        return self.regressor(np.sign)
+
+
+def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *, source="") -> PreparedTest:
+    """Filter, differentiate, trim and decimate one periodic test (see the module docstring)."""
+    spec = record.spec
+    where = source or spec.file
+    fs = record.sample_rate_hz
+    f = float(spec.frequency_hz)
+    cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * fs)
+    u_f = zero_phase_lowpass(record.u, cutoff, fs)
+    measured_v = record.get("v")
+    v_f = (
+        zero_phase_lowpass(measured_v, cutoff, fs)
+        if measured_v is not None
+        else time_derivative(u_f, fs)
+    )
+    measured_a = record.get("a")
+    a_f = (
+        zero_phase_lowpass(measured_a, cutoff, fs)
+        if measured_a is not None
+        else time_derivative(v_f, fs)
+    )
+    F_f = zero_phase_lowpass(record.F, cutoff, fs)
+
+    window = steady_cycles(
+        u_f, record.t, f, tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles
+    )
+    n_cycles = 0 if window is None else window.n_cycles
+    if n_cycles < MIN_STEADY_CYCLES:
+        raise SeriesFormatError(
+            where,
+            f"test '{spec.id}'",
+            f"only {n_cycles} steady cycle(s) of {f:g} Hz found after trimming the ramps; "
+            f"at least {MIN_STEADY_CYCLES} are needed",
+        )
+    decimation = max(1, int(fs / (options.samples_per_cutoff * cutoff)))
+    index = np.arange(window.start, window.stop, decimation)
+    speed = np.abs(v_f[window.start : window.stop])
+    peak_speed = float(np.percentile(speed, 99.5))
+    keep = np.abs(v_f[index]) >= options.reversal_band * peak_speed
+
+    return PreparedTest(
+        id=spec.id,
+        file=spec.file,
+        kind=spec.kind,
+        frequency_hz=f,
+        amplitude_m=float(spec.amplitude_m) if spec.amplitude_m is not None else float("nan"),
+        payload_kg=float(spec.payload_kg or 0.0),
+        order=spec.order,
+        sample_rate_hz=fs,
+        cutoff_hz=cutoff,
+        decimation=decimation,
+        window=window,
+        index=index,
+        t=record.t[index],
+        F=F_f[index],
+        u=u_f[index],
+        v=v_f[index],
+        a=a_f[index],
+        keep=keep,
+        velocity_full=v_f,
+    )
+
+
+def prepare_series(series: Series, options: SignalOptions = SignalOptions()) -> list[PreparedTest]:
+    """Prepare every periodic test of a series; broadband tests are not for the force fit."""
+    prepared = []
+    for record in series.periodic_tests:
+        source = str(series.path / record.spec.file) if series.path else record.spec.file
+        prepared.append(prepare_test(record, options, source=source))
+    if not prepared:
+        raise SeriesFormatError(
+            series.path or series.name, "tests", "no sine or triangle test to identify the force model from"
+        )
+    return prepared
