@@ -40,7 +40,7 @@ def steady_cycles(
     """The longest run of whole cycles whose amplitude is within `tolerance` of the plateau.
 
     The plateau amplitude is the median half peak-to-peak of the cycles that reach at least
-    half the largest one, so ramp-in and ramp-out cycles (smaller) fall outside the run.
+    90 % of the largest one, so ramp-in and ramp-out cycles (smaller) fall outside the run.
     Returns None when not a single steady cycle is found.
     """
     u_filtered = np.asarray(u_filtered, dtype=float)
@@ -48,10 +48,13 @@ def steady_cycles(
     fs = 1.0 / (t[1] - t[0])
     period = fs / frequency_hz
     _, phase = fundamental_phase(u_filtered, t, frequency_hz)
-    # first upward crossing of the fundamental at or after the first sample
+    # first upward crossing of sin(omega*t + phase) at or after t[0]; a crossing within half
+    # a sample of t[0] counts as at t[0] (rounding must not push it a whole period late)
     omega = 2.0 * np.pi * frequency_hz
-    first_time = ((-phase) % (2.0 * np.pi)) / omega + t[0]
-    first = (first_time - t[0]) * fs
+    first = ((-phase - omega * t[0]) % (2.0 * np.pi)) / omega * fs
+    if first > period - 0.5:
+        first -= period
+    first = max(first, 0.0)
     starts = first + period * np.arange(int((len(t) - first) // period) + 1)
     starts = starts[starts + period <= len(t)]
     if len(starts) == 0:
@@ -59,7 +62,8 @@ def steady_cycles(
     begin = np.rint(starts).astype(int)
     end = np.minimum(np.rint(starts + period).astype(int), len(t))
     amplitudes = np.array([0.5 * np.ptp(u_filtered[b:e]) for b, e in zip(begin, end)])
-    large = amplitudes >= 0.5 * amplitudes.max()
+    # the plateau from the near-largest cycles only: ramp cycles stay well below 90 %
+    large = amplitudes >= 0.9 * amplitudes.max()
     plateau = float(np.median(amplitudes[large]))
     steady = np.abs(amplitudes - plateau) <= tolerance * plateau
     best_start, best_len, run_start = 0, 0, None

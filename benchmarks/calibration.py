@@ -1,0 +1,84 @@
+"""Coverage of the 90 % intervals over many virtual-table series with known truth.
+
+Each series draws its own population truth around the sst-paper preset (Me, Ke, Ce, Fmu
+within +-25 %, alpha in [0.35, 0.9]), a test-to-test spread of 2-4 %, the twin's coloured
+force noise scaled by a random factor, and a random stiction ratio of 1.0-1.15. The run is
+fitted with the package defaults and every parameter's 90 % interval is checked against the
+population truth.
+
+    python benchmarks/calibration.py --series 50 --out calibration.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from bayes_sst.inference import fit
+from bayes_sst.inference._summary import summarize
+from bayes_sst.twin import SensorNoise, simulate
+
+NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
+
+
+def one_series(seed: int):
+    rng = np.random.default_rng(10_000 + seed)
+    overrides = {
+        "Me": 13_200.0 * rng.uniform(0.75, 1.25),
+        "Ke": 0.72e6 * rng.uniform(0.75, 1.25),
+        "Ce": 29_600.0 * rng.uniform(0.75, 1.25),
+        "alpha": rng.uniform(0.35, 0.9),
+        "Fmu": 12_500.0 * rng.uniform(0.75, 1.25),
+        "static_ratio": rng.uniform(1.0, 1.15),
+    }
+    base = SensorNoise()
+    k = rng.uniform(0.5, 2.0)
+    noise = SensorNoise(
+        u_white=base.u_white, u_quantum=base.u_quantum, a_white=base.a_white,
+        F_white=base.F_white * k, F_colored=base.F_colored * k, F_correlation_s=base.F_correlation_s,
+    )
+    spread = float(rng.uniform(0.02, 0.04))
+    series = simulate("sst-paper", seed=seed, spread=spread, noise=noise, truth_overrides=overrides)
+    return series, series.extra["truth"]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--series", type=int, default=50)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    rows = []
+    for seed in range(args.first_seed, args.first_seed + args.series):
+        started = time.perf_counter()
+        series, truth = one_series(seed)
+        result = fit(series, seed=seed)
+        summary = summarize(result.tree)
+        row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"]}
+        for name in NAMES:
+            p = summary["parameters"][name]
+            row[name] = {
+                "truth": float(truth[name]), "mean": p["mean"], "q05": p["q05"], "q95": p["q95"],
+                "covered": bool(p["q05"] <= truth[name] <= p["q95"]),
+            }
+        rows.append(row)
+        flags = " ".join(f"{n}:{'ok' if row[n]['covered'] else 'MISS'}" for n in NAMES)
+        print(f"series {seed:3d} {row['seconds']:5.1f} s {flags}", flush=True)
+    coverage = {n: float(np.mean([r[n]["covered"] for r in rows])) for n in NAMES}
+    errors = {
+        n: float(np.median([abs(r[n]["mean"] - r[n]["truth"]) / (abs(r[n]["truth"]) if n != "alpha" else 1.0) for r in rows]))
+        for n in NAMES
+    }
+    print("coverage of the 90 % intervals:", {n: round(c, 3) for n, c in coverage.items()})
+    print("median |error| (relative; alpha absolute):", {n: round(e, 4) for n, e in errors.items()})
+    print("converged:", sum(r["converged"] for r in rows), "of", len(rows))
+    if args.out:
+        with open(args.out, "w") as fh:
+            json.dump({"coverage": coverage, "median_error": errors, "rows": rows}, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# One-step set-up and run for bayes_sst.
+#   ./dev.sh example   install, then fit the example series in data/sst-paper and print the posterior
+#   ./dev.sh test      install, then run the test suite (extra arguments go to pytest)
+# Needs Python 3.12 or newer; it looks for $PYTHON, python3.13, python3.12, python3, and
+# pyenv's installed versions, and says so plainly when none is suitable.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+VENV=.venv
+
+suitable() {
+    "$1" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 12) else 1)' >/dev/null 2>&1
+}
+
+find_python() {
+    local candidates=()
+    [ -n "${PYTHON:-}" ] && candidates+=("$PYTHON")
+    candidates+=(python3.13 python3.12 python3)
+    local root="${PYENV_ROOT:-$HOME/.pyenv}"
+    if [ -d "$root/versions" ]; then
+        for dir in $(ls -1 "$root/versions" 2>/dev/null | sort -rV); do
+            candidates+=("$root/versions/$dir/bin/python3")
+        done
+    fi
+    for c in "${candidates[@]}"; do
+        if command -v "$c" >/dev/null 2>&1 && suitable "$(command -v "$c")"; then
+            command -v "$c"
+            return 0
+        fi
+    done
+    return 1
+}
+
+ensure_env() {
+    if [ -x "$VENV/bin/python" ] && suitable "$VENV/bin/python"; then
+        :
+    else
+        local py
+        if ! py=$(find_python); then
+            echo "dev.sh: no Python 3.12 or newer found (tried \$PYTHON, python3.13, python3.12, python3 and pyenv versions)." >&2
+            echo "dev.sh: install one (for example 'pyenv install 3.12') or set PYTHON=/path/to/python3.12." >&2
+            exit 1
+        fi
+        echo "dev.sh: creating $VENV with $py ($("$py" --version 2>&1))" >&2
+        rm -rf "$VENV"
+        "$py" -m venv "$VENV"
+    fi
+    # reinstall only when the project description changed since the last install
+    local stamp="$VENV/.installed-$(sha1sum pyproject.toml | cut -c1-12)"
+    if [ ! -f "$stamp" ]; then
+        echo "dev.sh: installing bayes_sst and its dependencies into $VENV ..." >&2
+        "$VENV/bin/python" -m pip install --quiet --upgrade pip
+        "$VENV/bin/python" -m pip install --quiet -e ".[test]"
+        rm -f "$VENV"/.installed-*
+        touch "$stamp"
+    fi
+}
+
+case "${1:-}" in
+    example)
+        shift
+        ensure_env
+        "$VENV/bin/bayes-sst" fit data/sst-paper --out runs/sst-paper --force "$@"
+        ;;
+    test)
+        shift
+        ensure_env
+        exec "$VENV/bin/python" -m pytest "$@"
+        ;;
+    *)
+        echo "usage: ./dev.sh example | test [pytest arguments]" >&2
+        exit 2
+        ;;
+esac

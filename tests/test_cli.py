@@ -1,0 +1,76 @@
+"""The command line: verbs, refusals, error messages, start-up cost."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from bayes_sst.cli import main
+
+
+def test_help_does_not_import_the_numerical_stack():
+    code = (
+        "import sys, contextlib, io\n"
+        "from bayes_sst.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    try: main(['--help'])\n"
+        "    except SystemExit: pass\n"
+        "heavy = [m for m in ('jax', 'numpyro', 'arviz', 'matplotlib', 'xarray', 'scipy') if m in sys.modules]\n"
+        "print(','.join(heavy))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+def test_physics_layer_does_not_pull_in_inference_or_plotting():
+    code = "import sys, bayes_sst.physics; print(','.join(m for m in ('numpyro', 'matplotlib', 'arviz') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
+
+
+def test_simulate_fit_summary_round_trip(tmp_path, capsys):
+    series = tmp_path / "series"
+    assert main(["simulate", "--out", str(series), "--seed", "3"]) == 0
+    manifest = json.loads((series / "series.json").read_text())
+    assert manifest["format"] == "sst-series/1" and len(manifest["tests"]) == 20
+
+    run = tmp_path / "run"
+    assert main(["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60"]) == 0
+    printed = capsys.readouterr().out
+    assert "published" in printed and "Me" in printed
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["n_tests"] == 20
+    assert (run / "posterior.nc").is_file() and (run / "summary.txt").is_file()
+
+    assert main(["summary", str(run)]) == 0
+    assert "kN" in capsys.readouterr().out
+
+    # an existing run folder is refused, untouched, unless --force
+    before = (run / "summary.json").read_text()
+    assert main(["fit", str(series), "--out", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert "already exists" in err and "--force" in err
+    assert (run / "summary.json").read_text() == before
+
+
+def test_malformed_series_gives_a_message_not_a_traceback(tmp_path, capsys):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "series.json").write_text('{"format": "sst-series/2", "name": "x", "tests": []}')
+    assert main(["fit", str(bad), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert "series.json" in err and "sst-series/2" in err and "Traceback" not in err
+    assert not (tmp_path / "run").exists()
+
+
+def test_summary_of_a_folder_that_is_not_a_run(tmp_path, capsys):
+    assert main(["summary", str(tmp_path)]) == 2
+    assert "summary.json" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["fit"], ["simulate"], ["nonsense"]])
+def test_usage_errors_exit_nonzero(argv):
+    with pytest.raises(SystemExit) as excinfo:
+        main(argv)
+    assert excinfo.value.code == 2

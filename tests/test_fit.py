@@ -1,0 +1,99 @@
+"""End-to-end: virtual-table series with known truth -> posterior that contains it."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bayes_sst.inference import fit
+from bayes_sst.inference._summary import format_summary, summarize
+from bayes_sst.io import load_series, read_run_summary, read_run_tree, write_run
+from bayes_sst.twin import default_plan, simulate
+
+NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
+
+
+@pytest.fixture(scope="module")
+def noisy_fit():
+    """The 20-test sst-paper plan (sines and triangles), 2 % test-to-test spread, the
+    twin's default coloured sensor noise; 2 chains keep the suite fast."""
+    plan = default_plan("sst-paper")
+    series = simulate("sst-paper", seed=7, spread=0.02, plan=plan)
+    result = fit(series, chains=2, draws=400, warmup=400, seed=3)
+    return series, result
+
+
+def test_population_truth_inside_99_percent_intervals_and_close(noisy_fit):
+    """One series can miss a calibrated 90 % interval by chance (benchmarks/calibration.py
+    measures the coverage over many); a 99 % miss here would mean bias, not chance."""
+    series, result = noisy_fit
+    truth = series.extra["truth"]
+    summary = summarize(result.tree)
+    for name in NAMES:
+        low, high = np.quantile(result.posterior[name].values, [0.005, 0.995])
+        assert low <= truth[name] <= high, (name, low, high, truth[name])
+    # accuracy targets of the foundation issue: 3 % Me, Ke; 10 % Ce; 0.05 alpha. Fmu's
+    # posterior sd on this plan is about 3 % (it trades off against Ce and alpha), so its
+    # 3 % target is a statement over many series (benchmarks/calibration.py); here 6 %.
+    for name, tolerance in (("Me", 0.03), ("Ke", 0.03), ("Fmu", 0.06), ("Ce", 0.10)):
+        assert abs(summary["parameters"][name]["mean"] / truth[name] - 1) < tolerance, name
+    assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05
+
+
+def test_per_test_coefficients_track_each_tests_own_truth(noisy_fit):
+    """The hierarchical layer: per-test Fmu posteriors follow the spread the twin drew."""
+    series, result = noisy_fit
+    post = result.posterior
+    drawn = np.array([t.spec.extra["truth"]["Fmu"] for t in series.periodic_tests])
+    estimated = post["Fmu_test"].mean(("chain", "draw")).values
+    assert np.corrcoef(drawn, estimated)[0, 1] > 0.5
+
+
+def test_uncertainty_is_not_the_iid_overconfidence(noisy_fit):
+    """An i.i.d. likelihood gives Me to 0.006 %; honest intervals reflect the 2 % test spread
+    over 20 tests (about 0.45 %) and must not be an order of magnitude tighter."""
+    _, result = noisy_fit
+    me = result.posterior["Me"].values.ravel()
+    assert me.std() / me.mean() > 0.002
+
+
+def test_sampler_checks_and_datatree_groups(noisy_fit):
+    _, result = noisy_fit
+    tree = result.tree
+    for group in ("posterior", "sample_stats", "log_likelihood", "observed_data", "constant_data"):
+        assert group in tree.children
+    summary = summarize(result.tree)
+    assert summary["divergences"] == 0
+    assert summary["max_r_hat"] <= 1.01
+    assert summary["min_ess_bulk"] >= 400
+    assert summary["converged"] and summary["warnings"] == []
+    assert tree["log_likelihood"]["F"].dims == ("chain", "draw", "test")
+
+
+def test_summary_flags_an_unconverged_run_loudly():
+    series = simulate("sst-paper", seed=2, plan=default_plan("sst-paper")[:4])
+    result = fit(series, chains=2, draws=15, warmup=15, seed=0)
+    summary = summarize(result.tree)
+    assert not summary["converged"]
+    assert any("ESS" in w for w in summary["warnings"])
+    assert "WARNING" in format_summary(summary)
+
+
+def test_run_folder_round_trip(noisy_fit, tmp_path):
+    _, result = noisy_fit
+    summary = summarize(result.tree, seconds=1.0)
+    write_run(tmp_path / "run", result.tree, summary, format_summary(summary))
+    back = read_run_summary(tmp_path / "run")
+    assert set(back["parameters"]) == set(NAMES)
+    for name in NAMES:
+        assert set(back["parameters"][name]) >= {"mean", "sd", "q05", "q50", "q95", "r_hat", "ess_bulk"}
+    assert {"divergences", "n_tests", "n_samples", "seconds"} <= set(back)
+    tree = read_run_tree(tmp_path / "run")
+    assert np.allclose(tree["posterior"]["Me"].values, result.posterior["Me"].values)
+    json.dumps(back)
+
+
+def test_shipped_example_series_loads_and_is_small():
+    series = load_series("data/sst-paper")
+    assert len(series.tests) == 20
+    assert series.n_samples > 30_000
