@@ -1,10 +1,9 @@
 """Coverage of the 90 % intervals over many virtual-table series with known truth.
 
-Each series draws its own population truth around the sst-paper preset (Me, Ke, Ce, Fmu
-within +-25 %, alpha in [0.35, 0.9]), a test-to-test spread of 2-4 %, the twin's coloured
-force noise scaled by a random factor, and a random stiction ratio of 1.0-1.15. The run is
-fitted with the package defaults and every parameter's 90 % interval is checked against the
-population truth.
+Each series is bayes_sst.twin.random_series(seed): its own population truth around the
+sst-paper preset, test-to-test spread, coloured force noise and stiction. It is fitted with
+the package defaults and every parameter's 90 % interval is checked against the population
+truth.
 
     python benchmarks/calibration.py --series 50 --out calibration.json
 """
@@ -19,29 +18,13 @@ import numpy as np
 
 from bayes_sst.inference import fit
 from bayes_sst.inference._summary import summarize
-from bayes_sst.twin import SensorNoise, simulate
+from bayes_sst.twin import random_series
 
 NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
 
 
 def one_series(seed: int):
-    rng = np.random.default_rng(10_000 + seed)
-    overrides = {
-        "Me": 13_200.0 * rng.uniform(0.75, 1.25),
-        "Ke": 0.72e6 * rng.uniform(0.75, 1.25),
-        "Ce": 29_600.0 * rng.uniform(0.75, 1.25),
-        "alpha": rng.uniform(0.35, 0.9),
-        "Fmu": 12_500.0 * rng.uniform(0.75, 1.25),
-        "static_ratio": rng.uniform(1.0, 1.15),
-    }
-    base = SensorNoise()
-    k = rng.uniform(0.5, 2.0)
-    noise = SensorNoise(
-        u_white=base.u_white, u_quantum=base.u_quantum, a_white=base.a_white,
-        F_white=base.F_white * k, F_colored=base.F_colored * k, F_correlation_s=base.F_correlation_s,
-    )
-    spread = float(rng.uniform(0.02, 0.04))
-    series = simulate("sst-paper", seed=seed, spread=spread, noise=noise, truth_overrides=overrides)
+    series = random_series(seed)
     return series, series.extra["truth"]
 
 

@@ -55,6 +55,7 @@ class SignalOptions:
     steady_tolerance: float = 0.025
     skip_cycles: int = 0
     samples_per_cutoff: float = 2.0
+    velocity_cutoff_ratio: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -116,16 +117,17 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * fs)
     u_f = zero_phase_lowpass(record.u, cutoff, fs)
     measured_v = record.get("v")
+    v_cutoff = min(options.velocity_cutoff_ratio * cutoff, 0.8 * 0.5 * fs)
     v_f = (
-        zero_phase_lowpass(measured_v, cutoff, fs)
+        zero_phase_lowpass(measured_v, v_cutoff, fs)
         if measured_v is not None
-        else time_derivative(u_f, fs)
+        else time_derivative(zero_phase_lowpass(record.u, v_cutoff, fs), fs)
     )
     measured_a = record.get("a")
     a_f = (
         zero_phase_lowpass(measured_a, cutoff, fs)
         if measured_a is not None
-        else time_derivative(v_f, fs)
+        else time_derivative(time_derivative(u_f, fs), fs)
     )
     F_f = zero_phase_lowpass(record.F, cutoff, fs)
 
