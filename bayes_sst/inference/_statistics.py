@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bayes_sst.signals import PreparedTest, zero_phase_lowpass
+from bayes_sst.signals import PreparedTest
 
 ALPHA_MIN = 0.05
 ALPHA_MAX = 1.95
@@ -54,23 +54,19 @@ class LaggedMoments:
 
 
 def _velocity_columns(test: PreparedTest, alpha_grid: np.ndarray):
-    """filter(|v|^alpha sign v) and its alpha-derivative filter(|v|^alpha log|v| sign v), (G, n)."""
-    fs, fc = test.sample_rate_hz, test.cutoff_hz
-    # filter only the steady window plus a margin wide enough for the filter to settle
-    margin = int(np.ceil(4.0 * fs / fc))
-    lo = max(0, test.window.start - margin)
-    hi = min(len(test.velocity_full), test.window.stop + margin)
-    v = test.velocity_full[lo:hi]
-    speed = np.abs(v)
-    moving = speed > 0
-    log_speed = np.where(moving, np.log(np.where(moving, speed, 1.0)), 0.0)
-    power = np.where(moving, np.exp(alpha_grid[:, None] * log_speed[None, :]), 0.0) * np.sign(v)
-    slope = power * log_speed[None, :]
-    both = zero_phase_lowpass(np.concatenate([power, slope]), fc, fs, axis=-1)
-    index = test.index - lo
-    sign_column = zero_phase_lowpass(np.sign(v), fc, fs)[index]
+    """filter(|v|^alpha sign v) and its alpha-derivative filter(|v|^alpha log|v| sign v), (G, n),
+    and filter(sign v), (n,), at the test's kept samples."""
+
+    def power_and_slope(v):
+        speed = np.abs(v)
+        moving = speed > 0
+        log_speed = np.where(moving, np.log(np.where(moving, speed, 1.0)), 0.0)
+        power = np.where(moving, np.exp(alpha_grid[:, None] * log_speed[None, :]), 0.0) * np.sign(v)
+        return np.concatenate([power, power * log_speed[None, :]])
+
+    both = test.regressor(power_and_slope)
     g = len(alpha_grid)
-    return both[:g, index], both[g:, index], sign_column
+    return both[:g], both[g:], test.friction_sign
 
 
 def _pair_moments(p: np.ndarray, q: np.ndarray, valid: np.ndarray):

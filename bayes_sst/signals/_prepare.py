@@ -95,12 +95,16 @@ class PreparedTest:
     def regressor(self, of_velocity: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """filter(g(v))[index]: a velocity regressor treated exactly as the force was.
 
-        `of_velocity` maps an array of velocities (any leading axes are allowed in its
-        output, the last axis being time) to regressor values.
+        `of_velocity` maps an array of velocities to regressor values (extra leading axes
+        are allowed in its output, the last axis being time). Only the steady window plus a
+        margin of four cut-off periods is filtered; the filter has settled well within it.
         """
-        values = of_velocity(self.velocity_full)
+        margin = int(np.ceil(4.0 * self.sample_rate_hz / self.cutoff_hz))
+        lo = max(0, self.window.start - margin)
+        hi = min(len(self.velocity_full), self.window.stop + margin)
+        values = of_velocity(self.velocity_full[lo:hi])
         filtered = zero_phase_lowpass(values, self.cutoff_hz, self.sample_rate_hz, axis=-1)
-        return filtered[..., self.index]
+        return filtered[..., self.index - lo]
 
     @property
     def friction_sign(self) -> np.ndarray:
