@@ -19,6 +19,7 @@ _LAZY = {
     "simulate": "bayes_sst.twin",
     "fit": "bayes_sst.inference",
     "summarize": "bayes_sst.inference",
+    "format_summary": "bayes_sst.inference",
 }
 
 
