@@ -50,6 +50,7 @@ def _cmd_fit(args) -> int:
     summary = summarize(result.tree, seconds=time.perf_counter() - started)
     summary["command"] = " ".join(["bayes-sst"] + sys.argv[1:])
     summary["timings"] = result.timings
+    summary["classical"] = _classical_beside(series)
     text = format_summary(summary)
     write_run(args.out, result.tree, summary, text, overwrite=args.force)
     print(text)
@@ -57,6 +58,17 @@ def _cmd_fit(args) -> int:
         print(f"WARNING: {warning}", file=sys.stderr)
     _progress(f"run written to {args.out}")
     return 0
+
+
+def _classical_beside(series):
+    """The hand method's pooled estimates for the summary's middle column, or None with a note."""
+    from bayes_sst.classical import classical_identification
+
+    try:
+        return classical_identification(series).to_json()["pooled"]
+    except (ValueError, ArithmeticError) as exc:
+        _progress(f"classical estimates not available for this series: {exc}")
+        return None
 
 
 def _cmd_summary(args) -> int:
@@ -99,6 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="leave out samples slower than this share of the peak speed (default 0.2)")
     p.add_argument("--force", action="store_true", help="replace an existing run folder")
     p.set_defaults(handler=_cmd_fit)
+
+    from bayes_sst.classical._command import add_parser as add_classical
+
+    add_classical(sub)
 
     p = sub.add_parser("summary", help="print the posterior summary of a run folder")
     p.add_argument("run", help="run folder written by 'bayes-sst fit'")

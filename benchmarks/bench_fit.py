@@ -7,7 +7,8 @@ Two virtual-table series (sst-paper preset, spread 0.02, default sensor noise):
   frequencies jittered by up to +-5 % and amplitudes by -15..0 % (about 400,000 samples).
 
 Every configuration runs in its own subprocess, so that the peak resident memory
-(ru_maxrss) belongs to that run alone. In the bayes_sst worker the JAX persistent compilation
+(VmHWM of /proc/self/status, the per-process high-water mark; ru_maxrss would inherit the
+parent's across exec) belongs to that run alone. In the bayes_sst worker the JAX persistent compilation
 cache points at a fresh, empty folder, and fit() runs twice with the same settings: the first
 ("cold") compiles, the second ("warm") loads the compiled code from the persistent cache,
 as a second fit of a same-sized series does in practice. Compilation = cold - warm sampling
@@ -85,6 +86,19 @@ def make_series(n_tests: int, seed: int = 1):
 
 
 def _peak_rss_mib() -> float:
+    """High-water resident set of this process's own address space (VmHWM), MiB.
+
+    Not ru_maxrss: Linux carries the high-water mark of the address space an exec replaces
+    into ru_maxrss, so a worker started by a big parent (here, the one that simulated the
+    series) would report the parent's peak. VmHWM belongs to the worker's address space alone.
+    """
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
 
 
@@ -196,7 +210,7 @@ def format_tables(results: list[dict]) -> str:
             "ESS/s", "R-hat", "div", "steps", "draws", "peak MiB")
     lines = ["timings (s) and sampler efficiency; ESS = bulk ESS, minimum over Me, Ke, Ce, alpha, Fmu;",
              "ESS/s = min ESS / sampling time (compilation excluded); R-hat = max over the same five;",
-             "steps = mean leapfrog steps per draw; peak MiB = ru_maxrss of the worker process",
+             "steps = mean leapfrog steps per draw; peak MiB = VmHWM (peak resident memory) of the worker process",
              _row(head, widths), "-" * sum(widths)]
     for res in results:
         config = res["config"]

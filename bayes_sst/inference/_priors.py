@@ -9,7 +9,20 @@ with centres c and relative width s. The generic centres describe a mid-size
 servo-hydraulic table (10 t, 1 MN/m, 20 kN/(m/s)^alpha, 10 kN) with s = 1: a factor of a
 few either way is a priori plausible and the data decide. With prior="physics" the centres
 come from the series' `table` description through the study's component relations
-(Me ~ deck mass, Ke = 4*p0*A/h, Fmu = mu_e*(F_hd + m*g)) and s = 0.5.
+(Me ~ deck mass plus the actuator's moving mass, Ke = 4*p0*A/h, Fmu = mu_e*(F_hd + m*g))
+and s = 0.5; physics_prior_report lists each centre with the relation and inputs used.
+
+`table` keys read (all optional, SI):
+
+    deck_mass_kg                          mass of the deck on its bearings
+    actuator_mass_kg                      actuator's moving mass (piston, rod, swivel)
+      or actuator.moving_mass_kg
+    moving_parts_kg                       further moving mass: a number or {name: kg}
+    moving_mass_kg                        the total moving mass, overriding the three above
+    strut.p0_pa, strut.area_m2, strut.h_m pre-charge, area and height of the four struts
+    strut.gamma, strut.l0_m               polytropic exponent (1.4 if absent), gas column
+    mu_e or bearing_friction              bearing friction coefficient (a number, or
+                                          {"mu": ...}); 0.01 if absent
 
     alpha ~ N(0.75, 0.5^2) truncated to [0.05, 1.95]   (0.5 turbulent orifice flow, 1 laminar)
     rho_k ~ HalfNormal(0.1)    between-test sd of each coefficient, relative to its centre
@@ -19,16 +32,25 @@ come from the series' `table` description through the study's component relation
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 import numpy as np
 
 from bayes_sst.inference._statistics import ALPHA_MAX, ALPHA_MIN, COEFFICIENTS
-from bayes_sst.physics import STANDARD_GRAVITY, hold_down_force, normal_force, strut_stiffness
+from bayes_sst.physics import (
+    STANDARD_GRAVITY,
+    coulomb_friction,
+    hold_down_force,
+    normal_force,
+    strut_cubic_stiffness,
+    strut_stiffness,
+)
 
 GENERIC_CENTRES = {"Me": 10_000.0, "Ke": 1.0e6, "Ce": 20_000.0, "Fmu": 10_000.0}
 DEFAULT_FRICTION_COEFFICIENT = 0.01
+DEFAULT_GAS_EXPONENT = 1.4
 
 
 @dataclass(frozen=True)
@@ -45,6 +67,7 @@ class Priors:
     noise_scale: float = 0.05
     noise_log_sd: float = 2.0
     source: str = "generic"
+    relations: Mapping[str, Any] = field(default_factory=dict)
 
     def centre_vector(self) -> np.ndarray:
         return np.array([self.centres[name] for name in COEFFICIENTS], dtype=float)
@@ -56,22 +79,128 @@ class Priors:
             "relative_sd": self.relative_sd,
             "alpha": {"mean": self.alpha_mean, "sd": self.alpha_sd, "low": self.alpha_low, "high": self.alpha_high},
             "between_test_spread_scale": self.spread_scale,
+            **({"relations": dict(self.relations)} if self.relations else {}),
         }
+
+
+def _positive(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+
+
+def _moving_mass(table: Mapping[str, Any]) -> tuple[float | None, str, dict[str, float]]:
+    """Me centre, the relation in words, and its inputs."""
+    total = table.get("moving_mass_kg")
+    if _positive(total):
+        return float(total), "Me = moving_mass_kg (given)", {"moving_mass_kg": float(total)}
+    deck = table.get("deck_mass_kg")
+    if not _positive(deck):
+        return None, "Me = deck + actuator moving mass: deck_mass_kg missing", {}
+    inputs = {"deck_mass_kg": float(deck)}
+    actuator = table.get("actuator_mass_kg")
+    if not _positive(actuator) and isinstance(table.get("actuator"), Mapping):
+        actuator = table["actuator"].get("moving_mass_kg")
+    if _positive(actuator):
+        inputs["actuator_mass_kg"] = float(actuator)
+    parts = table.get("moving_parts_kg")
+    if isinstance(parts, Mapping):
+        for name, mass in parts.items():
+            if _positive(mass):
+                inputs[f"moving_parts_kg.{name}"] = float(mass)
+    elif _positive(parts):
+        inputs["moving_parts_kg"] = float(parts)
+    relation = "Me = " + " + ".join(inputs)
+    if len(inputs) == 1:
+        relation += " (no actuator or other moving mass given)"
+    return float(sum(inputs.values())), relation, inputs
+
+
+def _friction_coefficient(table: Mapping[str, Any]) -> tuple[float, str]:
+    """mu_e and where it came from."""
+    for key in ("mu_e", "bearing_friction"):
+        value = table.get(key)
+        if isinstance(value, Mapping):
+            for inner in ("mu", "mu_e", "coefficient"):
+                if _positive(value.get(inner)):
+                    return float(value[inner]), f"{key}.{inner}"
+        elif _positive(value):
+            return float(value), key
+    return DEFAULT_FRICTION_COEFFICIENT, f"default {DEFAULT_FRICTION_COEFFICIENT} (no mu_e or bearing_friction)"
+
+
+def physics_prior_report(table: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """Component-relation values of the table description, each with its relation and inputs.
+
+    Returns {"Me", "Ke", "Kpe", "F_hd", "Fmu"}: each {"value" (SI, or None when an input is
+    missing), "unit", "relation", "inputs"}. Me, Ke and Fmu serve as prior centres (Ce has
+    no component relation and keeps the generic centre); F_hd enters Fmu; K'e (the cubic
+    strut coefficient of K'e*(u/h)^2*u) is not in the base force model and is listed for
+    checks of it.
+    """
+    table = table or {}
+    report: dict[str, dict[str, Any]] = {}
+    me, relation, inputs = _moving_mass(table)
+    report["Me"] = {"value": me, "unit": "kg", "relation": relation, "inputs": inputs}
+
+    strut = table.get("strut") if isinstance(table.get("strut"), Mapping) else {}
+    p0, area, h = (strut.get(k) for k in ("p0_pa", "area_m2", "h_m"))
+    have_strut = all(_positive(x) for x in (p0, area, h))
+    strut_inputs = {k: float(strut[k]) for k in ("p0_pa", "area_m2", "h_m") if _positive(strut.get(k))}
+    missing = [f"strut.{k}" for k in ("p0_pa", "area_m2", "h_m") if not _positive(strut.get(k))]
+    lacking = f": {', '.join(missing)} missing" if missing else ""
+    ke = strut_stiffness(p0, area, h) if have_strut else None
+    report["Ke"] = {"value": ke, "unit": "N/m", "relation": "Ke = 4*p0*A/h" + lacking, "inputs": strut_inputs}
+
+    gamma = strut.get("gamma")
+    gamma_given = _positive(gamma)
+    gamma = float(gamma) if gamma_given else DEFAULT_GAS_EXPONENT
+    l0 = strut.get("l0_m")
+    kpe = strut_cubic_stiffness(ke, gamma, float(h), float(l0)) if ke is not None and _positive(l0) else None
+    report["Kpe"] = {
+        "value": kpe,
+        "unit": "N/m",
+        "relation": "K'e = 0.5*(gamma*h/l0 - 1)*Ke"
+        + ("" if gamma_given else f", gamma = {DEFAULT_GAS_EXPONENT} assumed")
+        + ("" if _positive(l0) else "; strut.l0_m missing")
+        + ("" if ke is not None else "; needs Ke"),
+        "inputs": {
+            "gamma": gamma,
+            **({"l0_m": float(l0)} if _positive(l0) else {}),
+            **({"h_m": float(h)} if _positive(h) else {}),
+        },
+    }
+
+    f_hd = hold_down_force(p0, area) if _positive(p0) and _positive(area) else None
+    report["F_hd"] = {
+        "value": f_hd,
+        "unit": "N",
+        "relation": "F_hd = 4*p0*A" + ("" if f_hd is not None else ": strut.p0_pa or strut.area_m2 missing"),
+        "inputs": {k: v for k, v in strut_inputs.items() if k != "h_m"},
+    }
+
+    mu, mu_source = _friction_coefficient(table)
+    deck = table.get("deck_mass_kg")
+    fmu = None
+    if f_hd is not None and _positive(deck):
+        fmu = coulomb_friction(mu, normal_force(f_hd, float(deck), STANDARD_GRAVITY))
+    report["Fmu"] = {
+        "value": fmu,
+        "unit": "N",
+        "relation": "Fmu = mu_e*(F_hd + m_deck*g)"
+        + ("" if fmu is not None else ": needs F_hd and deck_mass_kg")
+        + f"; mu_e from {mu_source}",
+        "inputs": {"mu_e": mu, **({"deck_mass_kg": float(deck)} if _positive(deck) else {}),
+                   **({"F_hd": f_hd} if f_hd is not None else {}), "g": STANDARD_GRAVITY},
+    }
+    return report
 
 
 def physics_centres(table: Mapping[str, Any]) -> dict[str, float]:
     """Prior centres from a `table` description; keys it lacks keep the generic centre."""
     centres = dict(GENERIC_CENTRES)
-    deck = table.get("deck_mass_kg")
-    if isinstance(deck, (int, float)) and deck > 0:
-        centres["Me"] = float(deck)
-    strut = table.get("strut") or {}
-    p0, area, h = strut.get("p0_pa"), strut.get("area_m2"), strut.get("h_m")
-    if all(isinstance(x, (int, float)) and x > 0 for x in (p0, area, h)):
-        centres["Ke"] = strut_stiffness(p0, area, h)
-        if isinstance(deck, (int, float)) and deck > 0:
-            mu = table.get("mu_e", DEFAULT_FRICTION_COEFFICIENT)
-            centres["Fmu"] = float(mu) * normal_force(hold_down_force(p0, area), deck, STANDARD_GRAVITY)
+    report = physics_prior_report(table)
+    for name in ("Me", "Ke", "Fmu"):
+        if report[name]["value"] is not None:
+            centres[name] = float(report[name]["value"])
     return centres
 
 
@@ -80,5 +209,9 @@ def make_priors(kind: str = "generic", table: Mapping[str, Any] | None = None) -
     if kind == "generic":
         return Priors()
     if kind == "physics":
-        return replace(Priors(), centres=physics_centres(table or {}), relative_sd=0.5, source="physics")
+        report = physics_prior_report(table or {})
+        relations = {name: entry["relation"] for name, entry in report.items() if name in COEFFICIENTS}
+        return replace(
+            Priors(), centres=physics_centres(table or {}), relative_sd=0.5, source="physics", relations=relations
+        )
     raise ValueError(f"unknown prior kind {kind!r}; expected 'generic' or 'physics'")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from bayes_sst.inference._statistics import COEFFICIENTS
@@ -21,8 +23,25 @@ DISPLAY = {
 }
 
 
+def _tree_priors(tree) -> dict | None:
+    """The fit's prior settings from tree.attrs["priors"] (a JSON string), or None."""
+    raw = getattr(tree, "attrs", {}).get("priors")
+    if raw is None:
+        return None
+    try:
+        priors = json.loads(raw) if isinstance(raw, str) else dict(raw)
+    except (TypeError, ValueError):
+        return None
+    return priors if isinstance(priors, dict) else None
+
+
 def summarize(tree, *, seconds: float | None = None) -> dict:
-    """summary.json content: population parameters (SI), convergence checks and warnings."""
+    """summary.json content: population parameters (SI), convergence checks and warnings.
+
+    The fit's prior settings (source, centres, relations) are copied from
+    tree.attrs["priors"] under "priors" when present, so that format_summary can say how
+    far the data moved each physics-based centre.
+    """
     from arviz_stats import ess, rhat
 
     posterior = tree["posterior"].to_dataset()
@@ -68,7 +87,7 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
         warnings.append(f"{saturated} transitions hit the maximum tree depth")
     n_tests = int(posterior.sizes["test"])
     n_samples = int(tree["constant_data"]["recorded_samples"].values.sum())
-    return {
+    summary = {
         "series": tree.attrs.get("series", ""),
         "parameters": parameters,
         "between_test_spread": spread,
@@ -82,10 +101,50 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
         "n_likelihood_samples": int(tree["constant_data"]["keep"].values.sum()),
         "seconds": seconds,
     }
+    priors = _tree_priors(tree)
+    if priors is not None:
+        summary["priors"] = priors
+    return summary
 
 
-def format_summary(summary: dict) -> str:
-    """The human-readable summary: kN, t, 90 % intervals, the published point estimates."""
+def _classical_values(classical) -> dict | None:
+    """Pooled classical values from a classical.json dict, a ClassicalResult or a plain dict."""
+    if classical is None:
+        return None
+    if hasattr(classical, "pooled"):
+        classical = classical.pooled
+    if isinstance(classical, dict) and isinstance(classical.get("pooled"), dict):
+        classical = classical["pooled"]
+    return {k: float(v) for k, v in classical.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+
+def _prior_centre(priors: dict, name: str) -> float | None:
+    if name == "alpha":
+        centre = (priors.get("alpha") or {}).get("mean")
+    else:
+        centre = (priors.get("centres") or {}).get(name)
+    return float(centre) if isinstance(centre, (int, float)) and centre else None
+
+
+def _num(x, scale: float, width: int, fmt: str = ".4g") -> str:
+    if x is None or not np.isfinite(x):
+        return f"{'-':>{width}}"
+    return f"{x * scale:>{width}{fmt}}"
+
+
+def format_summary(summary: dict, classical=None, priors: dict | None = None) -> str:
+    """The human-readable summary: kN, t, 90 % intervals, beside the published point estimates.
+
+    Per parameter, three estimates side by side: the published value of the reference study,
+    this series' classical (hysteresis-loop) estimate when `classical` is given (the pooled
+    dict, classical.json's content, a ClassicalResult, or summary["classical"]), and the
+    posterior (mean, sd, 90 % interval). When the fit's priors were 'physics' (`priors`, or
+    summary["priors"] as summarize records it), a column "moved" gives posterior mean /
+    prior centre - 1: how far the data moved the component-relation value.
+    """
+    classical = _classical_values(classical if classical is not None else summary.get("classical"))
+    priors = priors if priors is not None else summary.get("priors")
+    physics = isinstance(priors, dict) and priors.get("source") == "physics"
     lines = [
         f"bayes_sst posterior for series '{summary.get('series', '')}': "
         f"{summary['n_tests']} tests, {summary['n_samples']} recorded samples"
@@ -96,17 +155,38 @@ def format_summary(summary: dict) -> str:
         lines.append("!! WARNING: the sampler did not pass its checks !!")
         lines += [f"!!   {w}" for w in summary["warnings"]]
         lines.append("")
-    header = f"{'parameter':<10}{'unit':<12}{'mean':>10}{'sd':>9}{'5%':>10}{'95%':>10}{'published':>11}{'r_hat':>7}{'ess':>7}"
+    header = f"{'parameter':<10}{'unit':<12}{'published':>10}"
+    if classical is not None:
+        header += f"{'classical':>10}"
+    header += f"{'mean':>10}{'sd':>9}{'5%':>10}{'95%':>10}"
+    if physics:
+        header += f"{'prior':>10}{'moved':>8}"
+    header += f"{'r_hat':>7}{'ess':>7}"
     lines += [header, "-" * len(header)]
     for name, p in summary["parameters"].items():
         scale, unit = DISPLAY[name]
-        published = PUBLISHED_SST.get(name)
-        lines.append(
-            f"{name:<10}{unit:<12}{p['mean'] * scale:>10.4g}{p['sd'] * scale:>9.3g}"
+        row = f"{name:<10}{unit:<12}{_num(PUBLISHED_SST.get(name), scale, 10)}"
+        if classical is not None:
+            row += _num(classical.get(name), scale, 10)
+        row += (
+            f"{p['mean'] * scale:>10.4g}{p['sd'] * scale:>9.3g}"
             f"{p['q05'] * scale:>10.4g}{p['q95'] * scale:>10.4g}"
-            f"{(published * scale if published is not None else float('nan')):>11.4g}"
-            f"{p['r_hat']:>7.3f}{p['ess_bulk']:>7.0f}"
         )
+        if physics:
+            centre = _prior_centre(priors, name)
+            row += _num(centre, scale, 10)
+            row += f"{100 * (p['mean'] / centre - 1):>+7.1f}%" if centre else f"{'-':>8}"
+        row += f"{p['r_hat']:>7.3f}{p['ess_bulk']:>7.0f}"
+        lines.append(row)
+    if physics:
+        lines.append("prior: centres from the table description's component relations; "
+                     "moved = posterior mean / prior centre - 1")
+        relations = priors.get("relations") or {}
+        for name, relation in relations.items():
+            lines.append(f"  {name:<5}{relation}")
+        generic = [name for name in summary["parameters"] if name not in relations]
+        if relations and generic:
+            lines.append(f"  {', '.join(generic)}: no component relation, generic prior centre")
     lines.append("")
     lines.append("between-test spread (sd relative to the population value, mean [90% interval]):")
     for name, s in summary["between_test_spread"].items():
