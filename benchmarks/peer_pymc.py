@@ -38,6 +38,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass
 
@@ -293,7 +294,8 @@ def main():
     from bench_fit import make_series  # same folder
 
     series = make_series(args.tests, args.seed)
-    result = run_peer(series, runs=list(zip(args.tune, args.draws)), centred=args.centred)
+    result = run_peer(series, runs=list(zip(args.tune, args.draws)), centred=args.centred,
+                      progress=lambda message: print(message, file=sys.stderr, flush=True))
     print(json.dumps(result, indent=1))
 
 

@@ -27,7 +27,10 @@ class SamplerSettings:
     seed: int = 0
     target_accept: float = 0.85
     max_tree_depth: int = 8
-    dense_mass: bool = True
+    # a dense mass matrix for the five global sites (alpha and the between-test spreads are
+    # correlated), diagonal for the per-test noise sites: a fully dense one in 2J+5
+    # dimensions adapts poorly for hundreds of tests (maximum tree depth on every draw)
+    dense_mass: bool | list = (("alpha", "spread"),)
 
 
 @dataclass
@@ -139,7 +142,7 @@ def fit(
         table_force_model,
         target_accept_prob=settings.target_accept,
         max_tree_depth=settings.max_tree_depth,
-        dense_mass=settings.dense_mass,
+        dense_mass=list(settings.dense_mass) if isinstance(settings.dense_mass, tuple) else settings.dense_mass,
         init_strategy=init_to_value(values=_initial_values(moments, priors.alpha_mean)),
     )
     n_devices = jax.local_device_count()

@@ -111,7 +111,8 @@ def build_tree(seed, samples, extra, table, scaled, moments, prepared, priors, s
             "kind": (("test",), np.array([t.kind for t in prepared])),
             "cutoff_hz": (("test",), np.array([t.cutoff_hz for t in prepared])),
             "n_cycles": (("test",), np.array([t.window.n_cycles for t in prepared])),
-            "recorded_samples": (("test",), np.array([t.window.stop - t.window.start for t in prepared])),
+            "recorded_samples": (("test",), np.array([len(t.velocity_full) for t in prepared])),
+            "steady_samples": (("test",), np.array([t.window.stop - t.window.start for t in prepared])),
         },
         coords={"test": test_ids},
     )

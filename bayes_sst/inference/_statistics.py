@@ -25,7 +25,7 @@ from bayes_sst.signals import PreparedTest
 
 ALPHA_MIN = 0.05
 ALPHA_MAX = 1.95
-ALPHA_STEP = 0.025
+ALPHA_STEP = 0.0125
 COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
 
 
