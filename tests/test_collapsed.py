@@ -24,8 +24,8 @@ def _random_problem(rng, n_tests=3, n_samples=60):
     for z in zs:
         now, before = z[:, 1:], z[:, :-1]
         moments.append(np.stack([now @ now.T, now @ before.T, before @ before.T]))
-    moments = np.stack(moments)[:, None]  # (J, 1, 3, 5, 5)
-    grid = np.concatenate([moments, moments], axis=1)  # alpha-independent for this check
+    moments = np.moveaxis(np.stack(moments), 0, -1)[None]  # (1, 3, 5, 5, J): tests last
+    grid = np.concatenate([moments, moments], axis=0)  # alpha-independent for this check
     table = MomentTable(
         moments=jnp.asarray(grid), slopes=jnp.zeros_like(jnp.asarray(grid)),
         n_pairs=jnp.full(n_tests, float(n_samples - 1)), alpha_start=0.0, alpha_step=1.0,
@@ -113,15 +113,15 @@ def test_hermite_interpolation_of_moments_matches_direct_computation():
         return np.stack([dnow @ now.T + now @ dnow.T, dnow @ before.T + now @ dbefore.T,
                          dbefore @ before.T + before @ dbefore.T])
 
-    moments = np.stack([lag_moments(z_of(a)) for a in grid])[None]
+    moments = np.stack([lag_moments(z_of(a)) for a in grid])[..., None]
     slopes = []
     for a in grid:
         dc = np.abs(v) ** a * np.log(np.abs(v)) * np.sign(v)
         slopes.append(lag_moments(z_of(a), np.stack([np.zeros_like(v), dc, dc, dc, dc])))
-    table = MomentTable(jnp.asarray(moments), jnp.asarray(np.stack(slopes)[None]), jnp.ones(1), 0.05, 0.025)
+    table = MomentTable(jnp.asarray(moments), jnp.asarray(np.stack(slopes)[..., None]), jnp.ones(1), 0.05, 0.025)
     for alpha in (0.3137, 0.5, 0.777, 1.4321):
         exact = lag_moments(z_of(alpha))
-        interpolated = np.asarray(moments_at(table, alpha))[0]
+        interpolated = np.asarray(moments_at(table, alpha))[..., 0]
         assert np.max(np.abs(interpolated - exact)) / np.max(np.abs(exact)) < 1e-7
 
 
@@ -129,10 +129,10 @@ def test_whitening_is_the_moment_matrix_of_the_ar1_innovations():
     rng = np.random.default_rng(4)
     z = rng.standard_normal((5, 50))
     now, before = z[:, 1:], z[:, :-1]
-    m = np.stack([now @ now.T, now @ before.T, before @ before.T])[None]
+    m = np.stack([now @ now.T, now @ before.T, before @ before.T])[..., None]
     phi = 0.37
     w = now - phi * before
-    assert np.allclose(np.asarray(whitened_moments(jnp.asarray(m), jnp.asarray([phi])))[0], w @ w.T)
+    assert np.allclose(np.asarray(whitened_moments(jnp.asarray(m), jnp.asarray([phi])))[..., 0], w @ w.T)
 
 
 def test_coefficient_draws_have_the_exact_conditional_moments():
@@ -166,7 +166,7 @@ def test_unrolled_cholesky_matches_numpy():
     rng = np.random.default_rng(6)
     a = rng.standard_normal((7, 4, 4))
     spd = a @ np.swapaxes(a, -1, -2) + 4 * np.eye(4)
-    L = sl.cholesky(spd, np)
-    assert np.allclose(L, np.linalg.cholesky(spd))
+    L = sl.cholesky(np.moveaxis(spd, 0, -1), np)  # batch last
+    assert np.allclose(np.moveaxis(L, -1, 0), np.linalg.cholesky(spd))
     b = rng.standard_normal((7, 4))
-    assert np.allclose(sl.cho_solve(L, b, np), np.linalg.solve(spd, b[..., None])[..., 0])
+    assert np.allclose(sl.cho_solve(L, b.T, np).T, np.linalg.solve(spd, b[..., None])[..., 0])

@@ -40,33 +40,48 @@ LOG_2PI = 1.8378770664093453
 
 
 class MomentTable(NamedTuple):
-    """JAX view of LaggedMoments: grids of moments and slopes, (J, G, 3, 5, 5)."""
+    """Grids of lagged moments and their alpha-slopes, (G, 3, 5, 5, J): tests on the last axis,
+    so that each matrix entry is one contiguous vector over tests."""
 
     moments: jax.Array
     slopes: jax.Array
-    n_pairs: jax.Array
+    n_pairs: jax.Array  # (J,)
     alpha_start: float
     alpha_step: float
 
 
+def moment_table(lagged, xp=jnp) -> MomentTable:
+    """MomentTable from a LaggedMoments (whose arrays are (J, G, 3, 5, 5))."""
+    order = (1, 2, 3, 4, 0)
+    return MomentTable(
+        moments=xp.asarray(lagged.moments.transpose(order)),
+        slopes=xp.asarray(lagged.slopes.transpose(order)),
+        n_pairs=xp.asarray(lagged.n_pairs),
+        alpha_start=float(lagged.alpha_grid[0]),
+        alpha_step=float(lagged.alpha_grid[1] - lagged.alpha_grid[0]),
+    )
+
+
 class TestTerms(NamedTuple):
-    """Per-test Gaussian pieces of the collapsed likelihood (see module docstring)."""
+    """Per-test Gaussian pieces of the collapsed likelihood (see module docstring); tests last."""
+
+    __test__ = False  # not a pytest class
 
     c: jax.Array  # (J,)
-    h: jax.Array  # (J, 4)
-    H: jax.Array  # (J, 4, 4)
-    A: jax.Array  # (J, 4, 4)
-    b: jax.Array  # (J, 4)
-    B_chol: jax.Array  # (J, 4, 4)
+    h: jax.Array  # (4, J)
+    H: jax.Array  # (4, 4, J)
+    A: jax.Array  # (4, 4, J)
+    b: jax.Array  # (4, J)
+    B_chol: jax.Array  # (4, 4, J)
 
 
 def moments_at(table: MomentTable, alpha, xp=jnp):
-    """Cubic Hermite interpolation of the tabulated moments at alpha, (J, 3, 5, 5).
+    """Cubic Hermite interpolation of the tabulated moments at alpha, (3, 5, 5, J).
 
     With s = (alpha - alpha_g)/step in [0, 1):
     M(alpha) = h00 M_g + h10 step M'_g + h01 M_(g+1) + h11 step M'_(g+1).
     """
-    n_grid = table.moments.shape[1]
+    n_grid = table.moments.shape[0]
     position = (alpha - table.alpha_start) / table.alpha_step
     g = xp.clip(xp.floor(position).astype(xp.int32), 0, n_grid - 2)
     s = position - g
@@ -77,40 +92,39 @@ def moments_at(table: MomentTable, alpha, xp=jnp):
     h11 = s3 - s2
     step = table.alpha_step
     return (
-        h00 * table.moments[:, g]
-        + h10 * step * table.slopes[:, g]
-        + h01 * table.moments[:, g + 1]
-        + h11 * step * table.slopes[:, g + 1]
+        h00 * table.moments[g]
+        + h10 * step * table.slopes[g]
+        + h01 * table.moments[g + 1]
+        + h11 * step * table.slopes[g + 1]
     )
 
 
 def whitened_moments(moments, phi, xp=jnp):
-    """W_j = M0 - phi (M1 + M1') + phi^2 M2: moments of z_t - phi z_(t-1), (J, 5, 5)."""
-    m0, m1, m2 = moments[:, 0], moments[:, 1], moments[:, 2]
-    p = phi[:, None, None]
-    return m0 - p * (m1 + xp.swapaxes(m1, -1, -2)) + p * p * m2
+    """W_j = M0 - phi (M1 + M1') + phi^2 M2: moments of z_t - phi z_(t-1), (5, 5, J)."""
+    m0, m1, m2 = moments[0], moments[1], moments[2]
+    return m0 - phi * (m1 + xp.swapaxes(m1, 0, 1)) + phi * phi * m2
 
 
 def test_terms(whitened, n_pairs, sigma, rho, xp=jnp) -> TestTerms:
-    """c_j, h_j, H_j of the module docstring, batched over tests.
+    """c_j, h_j, H_j of the module docstring, for all tests at once (tests last).
 
     With L the Cholesky factor of B and [G | g] = L^-1 [D A | D b], the pieces are
     H = A - G'G, h = b - G'g, (Db)' B^-1 (Db) = g'g: one triangular solve with five columns.
     """
     var = sigma * sigma
-    yy = whitened[:, 0, 0]
-    A = whitened[:, 1:, 1:] / var[:, None, None]
-    b = whitened[:, 1:, 0] / var[:, None]
-    DA = rho[None, :, None] * A
-    B = xp.eye(4) + DA * rho[None, None, :]
+    yy = whitened[0, 0]
+    A = whitened[1:, 1:] / var
+    b = whitened[1:, 0] / var
+    DA = rho[:, None, None] * A
+    B = xp.eye(4)[:, :, None] + DA * rho[None, :, None]
     B_chol = sl.cholesky(B, xp)
-    Gg = sl.solve_lower(B_chol, xp.concatenate([DA, (rho[None, :] * b)[:, :, None]], axis=-1), xp)
-    G, g = Gg[..., :4], Gg[..., 4]
-    H = A - xp.sum(G[:, :, :, None] * G[:, :, None, :], axis=1)
-    h = b - xp.sum(G * g[:, :, None], axis=1)
+    Gg = sl.solve_lower(B_chol, xp.concatenate([DA, (rho[:, None] * b)[:, None, :]], axis=1), xp)
+    G, g = Gg[:, :4], Gg[:, 4]
+    H = A - xp.sum(G[:, :, None, :] * G[:, None, :, :], axis=0)
+    h = b - xp.sum(G * g[:, None, :], axis=0)
     c = (
         -0.5 * sl.log_det_from_cholesky(B_chol, xp)
-        + 0.5 * xp.sum(g * g, axis=-1)
+        + 0.5 * xp.sum(g * g, axis=0)
         - 0.5 * n_pairs * (LOG_2PI + 2.0 * xp.log(sigma))
         - 0.5 * yy / var
     )
@@ -120,8 +134,8 @@ def test_terms(whitened, n_pairs, sigma, rho, xp=jnp) -> TestTerms:
 def population_posterior(terms: TestTerms, prior_mean, prior_sd, xp=jnp):
     """Q and r of the Gaussian conditional mu | rest ~ N(Q^-1 r, Q^-1)."""
     prior_precision = 1.0 / (prior_sd * prior_sd)
-    Q = xp.diag(prior_precision) + xp.sum(terms.H, axis=0)
-    r = prior_precision * prior_mean + xp.sum(terms.h, axis=0)
+    Q = xp.diag(prior_precision) + xp.sum(terms.H, axis=-1)
+    r = prior_precision * prior_mean + xp.sum(terms.h, axis=-1)
     return Q, r
 
 
@@ -149,21 +163,22 @@ def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_m
 
 def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
                       prior_mean, prior_sd, xp=jnp):
-    """An exact draw of mu and every theta_j given the sampled parameters, from standard
-    normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
-    log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j) (scaled units)."""
+    """An exact draw of mu (4,) and every theta_j (J, 4) given the sampled parameters, from
+    standard normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
+    log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units)."""
     terms = _terms(table, alpha, rho, phi, sigma, xp)
     Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
     Q_chol = sl.cholesky(Q, xp)
     # mu = Q^-1 r + L^-T z has covariance Q^-1
     mu = sl.cho_solve(Q_chol, r, xp) + sl.solve_upper_transposed(Q_chol, normal_mu, xp)
-    residual = terms.b - xp.sum(terms.A * mu[None, None, :], axis=-1)
+    residual = terms.b - xp.sum(terms.A * mu[None, :, None], axis=1)
     # theta_j = mu + D B^-1 D (b - A mu) + D L^-T z has covariance D B^-1 D
+    D = rho[:, None]
     theta = (
-        mu[None, :]
-        + rho * sl.cho_solve(terms.B_chol, rho * residual, xp)
-        + rho * sl.solve_upper_transposed(terms.B_chol, normal_theta, xp)
+        mu[:, None]
+        + D * sl.cho_solve(terms.B_chol, D * residual, xp)
+        + D * sl.solve_upper_transposed(terms.B_chol, normal_theta.T, xp)
     )
-    Hmu = xp.sum(terms.H * mu[None, None, :], axis=-1)
-    per_test = terms.c + xp.sum(terms.h * mu, axis=-1) - 0.5 * xp.sum(mu * Hmu, axis=-1)
-    return mu, theta, per_test
+    quadratic = xp.sum(mu[:, None, None] * terms.H * mu[None, :, None], axis=(0, 1))
+    per_test = terms.c + xp.sum(terms.h * mu[:, None], axis=0) - 0.5 * quadratic
+    return mu, theta.T, per_test

@@ -103,7 +103,7 @@ def fit(
     import jax.numpy as jnp
     from numpyro.infer import MCMC, NUTS, init_to_value
 
-    from bayes_sst.inference._collapsed import MomentTable
+    from bayes_sst.inference._collapsed import moment_table
     from bayes_sst.inference._model import ScaledPriors, table_force_model
     from bayes_sst.inference._posterior import build_tree
 
@@ -120,13 +120,7 @@ def fit(
         f"(from {sum(t.n_samples for t in series.periodic_tests)} recorded) prepared in {timings['signals']:.1f} s",
     )
 
-    table = MomentTable(
-        moments=jnp.asarray(moments.moments),
-        slopes=jnp.asarray(moments.slopes),
-        n_pairs=jnp.asarray(moments.n_pairs),
-        alpha_start=float(moments.alpha_grid[0]),
-        alpha_step=float(moments.alpha_grid[1] - moments.alpha_grid[0]),
-    )
+    table = moment_table(moments, jnp)
     scaled = ScaledPriors(
         mean=jnp.asarray(priors.centre_vector() / moments.coefficient_scale),
         sd=jnp.full(4, priors.relative_sd) * jnp.asarray(priors.centre_vector() / moments.coefficient_scale),

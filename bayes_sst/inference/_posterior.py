@@ -21,16 +21,13 @@ def _padded(arrays, fill=np.nan):
 
 def build_tree(seed, samples, extra, table, scaled, moments, prepared, priors, settings, series):
     """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
-    from bayes_sst.inference._collapsed import MomentTable, draw_coefficients
+    from bayes_sst.inference._collapsed import draw_coefficients, moment_table
 
     chains, draws = samples["alpha"].shape
     flat = {name: np.reshape(np.asarray(value), (chains * draws,) + value.shape[2:]) for name, value in samples.items()}
     n_draws, n_tests = chains * draws, moments.n_tests
     # numpy, draw by draw: the same equations as the sampler's, without an XLA compilation
-    host_table = MomentTable(
-        moments=np.asarray(table.moments), slopes=np.asarray(table.slopes),
-        n_pairs=np.asarray(table.n_pairs), alpha_start=table.alpha_start, alpha_step=table.alpha_step,
-    )
+    host_table = moment_table(moments, np)
     prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
     rng = np.random.default_rng(seed)
     normal_mu = rng.standard_normal((n_draws, 4))

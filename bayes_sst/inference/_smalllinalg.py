@@ -2,9 +2,10 @@
 
 LAPACK on CPU handles a batch of 4x4 matrices one call at a time, which costs far more
 than the arithmetic; written out entry by entry, XLA fuses the whole batch into a few
-vector kernels. Shapes: matrices (..., n, n), vectors (..., n), with n small and static.
-Every function takes the array namespace `xp` (jax.numpy inside the sampler, numpy for
-post-processing, where compiling would cost more than it saves).
+vector kernels. The batch axes come LAST: matrices are (n, n, *batch), vectors (n, *batch),
+so that every entry A[i, j] is one contiguous batch vector. Every function takes the array
+namespace `xp` (jax.numpy inside the sampler, numpy for post-processing, where compiling
+would cost more than it saves).
 """
 
 from __future__ import annotations
@@ -13,56 +14,53 @@ import jax.numpy as jnp
 
 
 def cholesky(A, xp=jnp):
-    """Lower-triangular L with L L' = A (A symmetric positive definite)."""
-    n = A.shape[-1]
+    """Lower-triangular L with L L' = A (A symmetric positive definite), (n, n, *batch)."""
+    n = A.shape[0]
     L = [[None] * n for _ in range(n)]
-    zero = xp.zeros_like(A[..., 0, 0])
+    zero = xp.zeros_like(A[0, 0])
     for j in range(n):
-        s = A[..., j, j]
+        s = A[j, j]
         for k in range(j):
             s = s - L[j][k] * L[j][k]
         L[j][j] = xp.sqrt(s)
         for i in range(j + 1, n):
-            s = A[..., i, j]
+            s = A[i, j]
             for k in range(j):
                 s = s - L[i][k] * L[j][k]
             L[i][j] = s / L[j][j]
-    rows = [xp.stack([L[i][j] if j <= i else zero for j in range(n)], axis=-1) for i in range(n)]
-    return xp.stack(rows, axis=-2)
+    return xp.stack([xp.stack([L[i][j] if j <= i else zero for j in range(n)]) for i in range(n)])
 
 
 def solve_lower(L, b, xp=jnp):
-    """x with L x = b (forward substitution); b (..., n) or, several columns, (..., n, m)."""
-    n = L.shape[-1]
+    """x with L x = b (forward substitution); b (n, *batch) or, several columns, (n, m, *batch)."""
+    n = L.shape[0]
     many = b.ndim == L.ndim
     x = []
     for i in range(n):
-        s = b[..., i, :] if many else b[..., i]
+        s = b[i]
         for k in range(i):
-            coefficient = L[..., i, k][..., None] if many else L[..., i, k]
-            s = s - coefficient * x[k]
-        diagonal = L[..., i, i][..., None] if many else L[..., i, i]
-        x.append(s / diagonal)
-    return xp.stack(x, axis=-2 if many else -1)
+            s = s - (L[i, k][None] if many else L[i, k]) * x[k]
+        x.append(s / (L[i, i][None] if many else L[i, i]))
+    return xp.stack(x)
 
 
 def solve_upper_transposed(L, b, xp=jnp):
-    """x with L' x = b (back substitution on the transpose of a lower factor)."""
-    n = L.shape[-1]
+    """x with L' x = b (back substitution on the transpose of a lower factor); b (n, *batch)."""
+    n = L.shape[0]
     x = [None] * n
     for i in reversed(range(n)):
-        s = b[..., i]
+        s = b[i]
         for k in range(i + 1, n):
-            s = s - L[..., k, i] * x[k]
-        x[i] = s / L[..., i, i]
-    return xp.stack(x, axis=-1)
+            s = s - L[k, i] * x[k]
+        x[i] = s / L[i, i]
+    return xp.stack(x)
 
 
 def cho_solve(L, b, xp=jnp):
-    """x with (L L') x = b, b (..., n)."""
+    """x with (L L') x = b, b (n, *batch)."""
     return solve_upper_transposed(L, solve_lower(L, b, xp), xp)
 
 
 def log_det_from_cholesky(L, xp=jnp):
-    """log|A| = 2 sum log diag(L)."""
-    return 2.0 * xp.sum(xp.log(xp.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
+    """log|A| = 2 sum log diag(L), (*batch)."""
+    return 2.0 * sum(xp.log(L[i, i]) for i in range(L.shape[0]))

@@ -15,7 +15,7 @@ ESS_LIMIT = 400
 # the per-test noise parameters (phi_j, sigma_j) are nuisances; with hundreds of them a few
 # reach 1.01 by chance in a healthy run, so they are held to a looser limit
 NUISANCE_RHAT_LIMIT = 1.05
-NUISANCE_ESS_LIMIT = 100
+NUISANCE_ESS_LIMIT = 50
 
 # (scale, unit) for display; files stay in SI
 DISPLAY = {
