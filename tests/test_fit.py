@@ -16,10 +16,10 @@ NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
 @pytest.fixture(scope="module")
 def noisy_fit():
     """The 20-test sst-paper plan (sines and triangles), 2 % test-to-test spread, the
-    twin's default coloured sensor noise; 2 chains keep the suite fast."""
+    twin.s default coloured sensor noise; the default sampler settings."""
     plan = default_plan("sst-paper")
     series = simulate("sst-paper", seed=7, spread=0.02, plan=plan)
-    result = fit(series, chains=2, draws=400, warmup=400, seed=3)
+    result = fit(series, seed=3)
     return series, result
 
 
