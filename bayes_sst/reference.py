@@ -12,3 +12,12 @@ PUBLISHED_SST = {
     "alpha": 0.5,
     "Fmu": 12_500.0,
 }
+
+# (scale, unit) for printing; files stay in SI
+DISPLAY_UNITS = {
+    "Me": (1e-3, "t"),
+    "Ke": (1e-3, "kN/m"),
+    "Ce": (1e-3, "kN/(m/s)^a"),
+    "alpha": (1.0, "-"),
+    "Fmu": (1e-3, "kN"),
+}

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayes_sst.inference._priors import Priors, make_priors
-from bayes_sst.inference._statistics import ALPHA_MAX, ALPHA_MIN, ALPHA_STEP, COEFFICIENTS
+from bayes_sst.inference._statistics import ALPHA_MAX, ALPHA_MIN, ALPHA_STEP, COEFFICIENTS, damping_columns
 from bayes_sst.signals import SignalOptions, prepare_series
 
 POPULATION = ("Me", "Ke", "Ce", "alpha", "Fmu")
@@ -73,19 +73,6 @@ class PeerData:
     n_samples: int  # decimated samples of all tests (kept or not)
 
 
-def _power_and_slope(alpha_grid):
-    """v -> [|v|^alpha sign v ; |v|^alpha log|v| sign v] for every alpha of the grid, (2G, n)."""
-
-    def of_velocity(v):
-        speed = np.abs(v)
-        moving = speed > 0
-        log_speed = np.where(moving, np.log(np.where(moving, speed, 1.0)), 0.0)
-        power = np.where(moving, np.exp(alpha_grid[:, None] * log_speed[None, :]), 0.0) * np.sign(v)
-        return np.concatenate([power, power * log_speed[None, :]])
-
-    return of_velocity
-
-
 def build_peer_data(series, signals: SignalOptions = SignalOptions(), priors: Priors | None = None,
                     prepared=None) -> PeerData:
     """The pairs the AR(1) likelihood runs over, from prepare_series(series, signals)."""
@@ -102,7 +89,7 @@ def build_peer_data(series, signals: SignalOptions = SignalOptions(), priors: Pr
     n_pairs = []
     for j, test in enumerate(prepared):
         y = (test.F - test.payload_kg * test.a) / force_scale
-        both = test.regressor(_power_and_slope(grid)) * centres[2] / force_scale  # (2G, n)
+        both = test.regressor(damping_columns(grid)) * centres[2] / force_scale  # (2G, n)
         fixed = np.stack([
             test.a * centres[0] / force_scale,
             test.u * centres[1] / force_scale,

@@ -42,6 +42,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.classical._loops import (
     DEFAULT_POINTS,
     DEFAULT_REVERSAL_BAND,
@@ -482,13 +483,7 @@ def classical_identification(
 
 # --------------------------------------------------------------------------- text
 
-DISPLAY = {
-    "Me": (1e-3, "t"),
-    "Ke": (1e-3, "kN/m"),
-    "Ce": (1e-3, "kN/(m/s)^a"),
-    "alpha": (1.0, "-"),
-    "Fmu": (1e-3, "kN"),
-}
+
 
 
 def format_classical(result: ClassicalResult | Mapping[str, Any]) -> str:
@@ -507,7 +502,7 @@ def format_classical(result: ClassicalResult | Mapping[str, Any]) -> str:
     header = f"{'parameter':<10}{'unit':<12}{'pooled':>10}{'published':>11}{'test sd':>9}{'n':>4}"
     lines += [header, "-" * len(header)]
     for name in PARAMETERS:
-        scale, unit = DISPLAY[name]
+        scale, unit = DISPLAY_UNITS[name]
         value = data["pooled"][name]
         published = PUBLISHED_SST.get(name)
         spread = data.get("spread", {}).get(name) or {}

@@ -53,18 +53,24 @@ class LaggedMoments:
         return len(self.test_ids)
 
 
-def _velocity_columns(test: PreparedTest, alpha_grid: np.ndarray):
-    """filter(|v|^alpha sign v) and its alpha-derivative filter(|v|^alpha log|v| sign v), (G, n),
-    and filter(sign v), (n,), at the test's kept samples."""
+def damping_columns(alpha_grid: np.ndarray):
+    """v -> [|v|^alpha sign v ; |v|^alpha log|v| sign v] for every alpha of the grid, (2G, n):
+    the damping regressor and its exact alpha-derivative (0 where v = 0)."""
 
-    def power_and_slope(v):
+    def of_velocity(v):
         speed = np.abs(v)
         moving = speed > 0
         log_speed = np.where(moving, np.log(np.where(moving, speed, 1.0)), 0.0)
         power = np.where(moving, np.exp(alpha_grid[:, None] * log_speed[None, :]), 0.0) * np.sign(v)
         return np.concatenate([power, power * log_speed[None, :]])
 
-    both = test.regressor(power_and_slope)
+    return of_velocity
+
+
+def _velocity_columns(test: PreparedTest, alpha_grid: np.ndarray):
+    """filter(|v|^alpha sign v) and its alpha-derivative filter(|v|^alpha log|v| sign v), (G, n),
+    and filter(sign v), (n,), at the test's kept samples."""
+    both = test.regressor(damping_columns(alpha_grid))
     g = len(alpha_grid)
     return both[:g], both[g:], test.friction_sign
 

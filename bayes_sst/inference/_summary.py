@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 
+from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 
@@ -19,14 +20,7 @@ ESS_LIMIT = 400
 NUISANCE_RHAT_LIMIT = 1.1
 NUISANCE_ESS_LIMIT = 20
 
-# (scale, unit) for display; files stay in SI
-DISPLAY = {
-    "Me": (1e-3, "t"),
-    "Ke": (1e-3, "kN/m"),
-    "Ce": (1e-3, "kN/(m/s)^a"),
-    "alpha": (1.0, "-"),
-    "Fmu": (1e-3, "kN"),
-}
+
 
 
 def _tree_priors(tree) -> dict | None:
@@ -184,7 +178,7 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
     header += f"{'r_hat':>7}{'ess':>7}"
     lines += [header, "-" * len(header)]
     for name, p in summary["parameters"].items():
-        scale, unit = DISPLAY[name]
+        scale, unit = DISPLAY_UNITS[name]
         row = f"{name:<10}{unit:<12}{_num(PUBLISHED_SST.get(name), scale, 10)}"
         if classical is not None:
             row += _num(classical.get(name), scale, 10)
