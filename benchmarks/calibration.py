@@ -18,6 +18,7 @@ import numpy as np
 
 from bayes_sst.inference import fit
 from bayes_sst.inference._summary import summarize
+from bayes_sst.signals import SignalOptions
 from bayes_sst.twin import random_series
 
 NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
@@ -33,12 +34,15 @@ def main():
     parser.add_argument("--series", type=int, default=50)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--out", default=None)
+    parser.add_argument("--cutoff-multiple", type=float, default=None,
+                        help="signal cut-off multiple (default: the package default)")
     args = parser.parse_args()
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.series):
         started = time.perf_counter()
         series, truth = one_series(seed)
-        result = fit(series, seed=seed)
+        signals = SignalOptions() if args.cutoff_multiple is None else SignalOptions(cutoff_multiple=args.cutoff_multiple)
+        result = fit(series, seed=seed, signals=signals)
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"]}
         for name in NAMES:
