@@ -1,11 +1,12 @@
-"""simulate(): a campaign of periodic tests on the twin table, as an in-memory Series.
+"""simulate(): a campaign of periodic and broadband tests on the twin table, as an in-memory Series.
 
-For each planned test: the command (analytic, at the internal rate), the test's own
-parameters (population truth times its spread factors, payload added to the mass and to
-the bearings' normal force), one batched JAX integration of all tests, then the sensors.
-Every random number comes from numpy Generators seeded by `seed` alone: one stream for the
-spread draws and one per test for its sensor noise, so that switching the noise or the
-spread does not move the other.
+For each planned test: the command (analytic for periodic tests, a seeded random signal for
+broadband ones, at the internal rate), the test's own parameters (population truth times its
+spread factors, payload added to the mass and to the bearings' normal force), one batched
+JAX integration per output rate, then the sensors. Every random number comes from numpy
+Generators seeded by `seed` alone: one stream for the spread draws, one per test for its
+sensor noise and one per test for its broadband command, so that switching the noise or the
+spread, or adding broadband tests, does not move the others.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from bayes_sst.io import Series, TestRecord, TestSpec
+from bayes_sst.twin._broadband import broadband_command, broadband_duration
 from bayes_sst.twin._command import (
     DEFAULT_CORNER_ROUNDING,
     DEFAULT_RAMP_CYCLES,
@@ -27,12 +29,15 @@ from bayes_sst.twin._command import (
 from bayes_sst.twin._deck import DeckParams
 from bayes_sst.twin._hydraulics import servo_params
 from bayes_sst.twin._integrate import integrate
+from bayes_sst.twin._linear import closed_loop_resonance_hz
 from bayes_sst.twin._noise import SensorNoise, add_sensor_noise, resolve_noise
 from bayes_sst.twin._plan import PlanItem, as_plan, check_limits, default_plan
 from bayes_sst.twin._spread import draw_factors, spread_sds
 from bayes_sst.twin._truth import TableTruth, preset_truth
 
 DEFAULT_INTERNAL_RATE_HZ = 4000.0
+DEFAULT_BROADBAND_RATE_HZ = 1000.0
+_ID_PREFIX = {"sine": "S", "triangle": "T", "broadband": "B"}
 
 
 def _bucket(n: int) -> int:
@@ -60,7 +65,12 @@ def deck_of_test(truth: TableTruth, factors: Mapping[str, float], payload_kg: fl
 
 def _test_truth(truth: TableTruth, deck: DeckParams, factors: Mapping[str, float],
                 payload_kg: float) -> dict[str, float]:
-    """What the force model of this test should identify (payload included), plus the empty deck."""
+    """What the force model of this test should identify (payload included), plus the empty deck.
+
+    f_oil_hz is the open oil column's frequency with the test's moving mass; resonance_hz
+    the peak of the closed loop's linear |H(a_cmd -> a)| (see _linear.py), which is what a
+    frequency response measured on the table shows.
+    """
     return {
         "Me": float(deck.mass),
         "Ke": float(deck.Ke),
@@ -69,6 +79,7 @@ def _test_truth(truth: TableTruth, deck: DeckParams, factors: Mapping[str, float
         "Fmu": float(deck.Fk),
         "static_ratio": truth.static_ratio,
         "f_oil_hz": truth.f_oil_hz(float(deck.mass)),
+        "resonance_hz": closed_loop_resonance_hz(truth, float(deck.mass), Ke=float(deck.Ke)),
         "Me_empty": float(truth.Me * factors["Me"]),
         "Fmu_empty": float(truth.Fmu * factors["Fmu"]),
     }
@@ -117,7 +128,7 @@ def simulate_response(
 
 
 def _item_ids(items: list[PlanItem]) -> list[str]:
-    ids = [item.id or f"{'S' if item.kind == 'sine' else 'T'}{i + 1:02d}" for i, item in enumerate(items)]
+    ids = [item.id or f"{_ID_PREFIX[item.kind]}{i + 1:02d}" for i, item in enumerate(items)]
     if len(set(ids)) != len(ids):
         raise ValueError(f"test ids must be unique, got {ids}")
     return ids
@@ -139,26 +150,36 @@ def simulate(
     corner_rounding: float = DEFAULT_CORNER_ROUNDING,
     internal_rate_hz: float = DEFAULT_INTERNAL_RATE_HZ,
     record_velocity: bool = False,
+    broadband_sample_rate_hz: float = DEFAULT_BROADBAND_RATE_HZ,
 ) -> Series:
     """A simulated test series of a table with known truth.
 
     preset : a name in PRESETS, or a TableTruth.
     seed : the only source of randomness (spread draws and sensor noise).
     plan : tests to run, each a dict, PlanItem or TestSpec-like object with kind ('sine' or
-        'triangle'), frequency_hz, amplitude_m and optionally payload_kg and id; None runs
-        default_plan(preset). Commands beyond the stroke or velocity limit are refused.
+        'triangle'), frequency_hz, amplitude_m and optionally payload_kg, id and
+        sample_rate_hz; or kind 'broadband' with signal ('noise' or 'earthquake') and
+        optionally duration_s, peak_acceleration_m_s2, payload_kg, id, sample_rate_hz (see
+        PlanItem and _broadband.py). None runs default_plan(preset). Commands beyond the
+        stroke or velocity limit (for broadband tests also the acceleration limit) are refused.
     spread : relative sd of the test-to-test lognormal spread of Me, Ke, Ce, Fmu; one float
         for all four or a dict per parameter; None or 0 for none.
     noise : SensorNoise (or a dict of its fields); None for the realistic defaults; 'quiet'
         for none, so the recorded signals are exactly the simulated ones.
     n_cycles, ramp_cycles, rest_s, corner_rounding : shape of each command (see _command.py).
-    sample_rate_hz : output rate; the integrator steps k = ceil(internal_rate_hz/sample_rate_hz)
-        times per sample and records every k-th step.
+    sample_rate_hz : output rate of periodic tests; the integrator steps
+        k = ceil(internal_rate_hz/sample_rate_hz) times per sample and records every k-th step.
+    broadband_sample_rate_hz : output rate of broadband tests (default 1000 Hz, so the oil
+        column's resonance near 30 Hz is well resolved). A plan item's own sample_rate_hz
+        overrides either.
     truth_overrides : TableTruth fields to change, e.g. {'static_ratio': 1.5}.
     record_velocity : add a 'v' column, the true (noise-free) deck velocity.
 
     Series.extra['truth'] holds the population truth; each TestSpec.extra['truth'] the
-    test's own force-model parameters (payload included).
+    test's own force-model parameters (payload included), its open oil-column frequency
+    f_oil_hz and its closed-loop resonance resonance_hz. A broadband test's TestSpec has no
+    frequency_hz or amplitude_m; its extra holds signal, duration_s, peak_acceleration_m_s2,
+    peak_displacement_m and sample_rate_hz.
     """
     truth = preset_truth(preset).replace(truth_overrides)
     if plan is None:
@@ -171,23 +192,34 @@ def simulate(
     sds = spread_sds(spread)
     if int(n_cycles) != n_cycles or n_cycles < 1:
         raise ValueError(f"n_cycles must be a positive integer, got {n_cycles!r}")
-    if not (sample_rate_hz > 0.0 and internal_rate_hz > 0.0):
-        raise ValueError("sample_rate_hz and internal_rate_hz must be positive")
-    k = max(1, math.ceil(internal_rate_hz / sample_rate_hz - 1e-9))
-    dt = 1.0 / (k * sample_rate_hz)
+    if not (sample_rate_hz > 0.0 and internal_rate_hz > 0.0 and broadband_sample_rate_hz > 0.0):
+        raise ValueError("sample_rate_hz, broadband_sample_rate_hz and internal_rate_hz must be positive")
+    rates = [item.sample_rate_hz or (broadband_sample_rate_hz if item.is_broadband else sample_rate_hz)
+             for item in items]
+    steps = [max(1, math.ceil(internal_rate_hz / rate - 1e-9)) for rate in rates]
 
     seeds = np.random.SeedSequence(seed)
     spread_seed, noise_seed = seeds.spawn(2)
+    # Spawned after the first two, so periodic tests keep the streams they always had.
+    (command_seed,) = seeds.spawn(1)
     factors = draw_factors(np.random.default_rng(spread_seed), len(items), sds)
     noise_rngs = [np.random.default_rng(s) for s in noise_seed.spawn(len(items))]
+    command_rngs = [np.random.default_rng(s) for s in command_seed.spawn(len(items))]
 
     timing = dict(n_cycles=int(n_cycles), ramp_cycles=ramp_cycles, rest_s=rest_s)
     decks, commands, n_out, test_factor_list = [], [], [], []
     for i, item in enumerate(items):
-        n = math.ceil(command_duration(item.frequency_hz, **timing) * sample_rate_hz) + 1
-        t_internal = np.arange(n * k) * dt
-        command = periodic_command(item.kind, item.frequency_hz, item.amplitude_m, t_internal,
-                                   corner_rounding=corner_rounding, **timing)
+        rate, k = rates[i], steps[i]
+        dt = 1.0 / (k * rate)
+        if item.is_broadband:
+            n = math.ceil(broadband_duration(item.duration_s, rest_s=rest_s) * rate) + 1
+            command = broadband_command(item.signal, np.arange(n * k) * dt, rng=command_rngs[i],
+                                        duration_s=item.duration_s,
+                                        peak_acceleration=item.peak_acceleration_m_s2, rest_s=rest_s)
+        else:
+            n = math.ceil(command_duration(item.frequency_hz, **timing) * rate) + 1
+            command = periodic_command(item.kind, item.frequency_hz, item.amplitude_m, np.arange(n * k) * dt,
+                                       corner_rounding=corner_rounding, **timing)
         check_limits(item, command, truth)
         commands.append(command)
         n_out.append(n)
@@ -195,13 +227,22 @@ def simulate(
         test_factor_list.append(test_factors)
         decks.append(deck_of_test(truth, test_factors, item.payload_kg))
 
-    sim = _run(truth, decks, [c.u for c in commands], [c.v for c in commands], dt, k)
+    # One batched integration per output rate (tests of one batch share the step and k).
+    sim: dict[str, list] = {name: [None] * len(items) for name in ("u", "v", "a", "F")}
+    for rate, k in sorted(set(zip(rates, steps))):
+        lanes = [i for i in range(len(items)) if rates[i] == rate and steps[i] == k]
+        out = _run(truth, [decks[i] for i in lanes], [commands[i].u for i in lanes],
+                   [commands[i].v for i in lanes], 1.0 / (k * rate), k)
+        for name, values in out.items():
+            for i, value in zip(lanes, values):
+                sim[name][i] = value
 
     tests = []
     for i, item in enumerate(items):
-        t = np.arange(n_out[i]) / sample_rate_hz
+        rate, k = rates[i], steps[i]
+        t = np.arange(n_out[i]) / rate
         measured = add_sensor_noise({"u": sim["u"][i], "a": sim["a"][i], "F": sim["F"][i]},
-                                    noise, noise_rngs[i], sample_rate_hz)
+                                    noise, noise_rngs[i], rate)
         columns = {
             "t": t,
             "u": measured["u"],
@@ -212,6 +253,18 @@ def simulate(
         }
         if record_velocity:
             columns["v"] = sim["v"][i]
+        extra: dict[str, Any] = {}
+        if item.is_broadband:
+            extra = {
+                "signal": item.signal,
+                "duration_s": item.duration_s,
+                "peak_acceleration_m_s2": item.peak_acceleration_m_s2,
+                "peak_displacement_m": float(np.max(np.abs(commands[i].u))),
+                "sample_rate_hz": float(rate),
+            }
+        elif item.sample_rate_hz is not None:
+            extra = {"sample_rate_hz": float(rate)}
+        extra["truth"] = _test_truth(truth, decks[i], test_factor_list[i], item.payload_kg)
         spec = TestSpec(
             id=ids[i],
             file=f"{ids[i]}.csv",
@@ -220,7 +273,7 @@ def simulate(
             amplitude_m=item.amplitude_m,
             payload_kg=item.payload_kg,
             order=i + 1,
-            extra={"truth": _test_truth(truth, decks[i], test_factor_list[i], item.payload_kg)},
+            extra=extra,
         )
         tests.append(TestRecord(spec, columns))
 
@@ -235,13 +288,16 @@ def simulate(
         "rest_s": float(rest_s),
         "corner_rounding": float(corner_rounding),
         "sample_rate_hz": float(sample_rate_hz),
-        "internal_rate_hz": k * float(sample_rate_hz),
+        "internal_rate_hz": max(1, math.ceil(internal_rate_hz / sample_rate_hz - 1e-9)) * float(sample_rate_hz),
         "controller": truth.controller(),
         "stribeck_velocity": truth.stribeck_velocity,
     }
+    if any(item.is_broadband for item in items):
+        twin["broadband_sample_rate_hz"] = float(broadband_sample_rate_hz)
+    population = dict(truth.population(), resonance_hz=closed_loop_resonance_hz(truth, truth.Me))
     return Series(
         name=name or f"{preset_name}-twin-seed{seed}",
         tests=tuple(tests),
         table=truth.table_description(),
-        extra={"truth": truth.population(), "twin": twin},
+        extra={"truth": population, "twin": twin},
     )
