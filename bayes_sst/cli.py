@@ -113,8 +113,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(handler=_cmd_fit)
 
     from bayes_sst.classical._command import add_parser as add_classical
+    from bayes_sst.oil._command import add_parser as add_ocrf
 
     add_classical(sub)
+    add_ocrf(sub)
 
     p = sub.add_parser("summary", help="print the posterior summary of a run folder")
     p.add_argument("run", help="run folder written by 'bayes-sst fit'")

@@ -10,7 +10,7 @@ which is where the twin and a real table put it (the command is known exactly). 
 the same payload are pooled by adding their segment-averaged spectra weighted by their
 numbers of segments, i.e. one Welch average over all their segments.
 
-Random error (Bendat & Piersol, Random Data, 4th ed., eq. 9.90): the relative standard
+Random error (Bendat & Piersol, Random Data, on frequency response estimates): the relative standard
 deviation of |H1| (and the standard deviation of its phase, rad) is
 
     eps_r(f) = sqrt(1 - gamma^2)/(|gamma|*sqrt(2*n_d)),

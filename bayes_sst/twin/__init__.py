@@ -20,7 +20,7 @@ diagnosis. The table is simulated physically, not as "force model plus white noi
 
 from bayes_sst.twin._command import Command, periodic_command
 from bayes_sst.twin._noise import SensorNoise
-from bayes_sst.twin._plan import PlanItem, default_plan
+from bayes_sst.twin._plan import PlanItem, broadband_plan, default_plan
 from bayes_sst.twin._scenarios import random_series
 from bayes_sst.twin._simulate import simulate, simulate_response
 from bayes_sst.twin._spread import SPREAD_PARAMETERS
@@ -36,6 +36,7 @@ __all__ = [
     "PlanItem",
     "SensorNoise",
     "TableTruth",
+    "broadband_plan",
     "default_plan",
     "periodic_command",
     "random_series",

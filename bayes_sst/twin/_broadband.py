@@ -6,8 +6,10 @@ given, with consistent velocity and acceleration:
 1. an acceleration shape a0(t) is drawn at the internal rate (white noise shaped in the
    frequency domain; for an earthquake also multiplied by a time envelope);
 2. it is integrated twice in the frequency domain, U(f) = -A0(f)*HP(f)/(2*pi*f)^2, with a
-   high-pass HP that removes the drift double integration would otherwise produce: this is
-   the baseline correction, and it makes the displacement return to zero;
+   causal 4th-order Butterworth high-pass HP (0.2 Hz) that removes the drift double
+   integration would otherwise produce: this is the baseline correction. HP/s^2 is itself a
+   causal, stable filter, so an earthquake's displacement starts with its shaking rather
+   than seconds before it (as a zero-phase high-pass would make it), and settles after it;
 3. the displacement u0 is faded in and out by the raised-cosine envelope e(t) of the periodic
    commands (rest, ramp, hold, ramp, rest), and the velocity and acceleration follow by the
    product rule from the spectral derivatives of u0,
@@ -26,8 +28,8 @@ Signals:
   small (its spectrum falls as f^-2). The default band is 1-50 Hz.
 * 'earthquake': Kanai-Tajimi-filtered white noise (ground frequency 2.5 Hz, damping 0.6)
   with a Clough-Penzien high-pass (0.25 Hz) and the same 50 Hz low-pass, multiplied by a
-  Jennings-type envelope: (t/t1)^2 rising over the first 10 % of the record, flat up to
-  40 %, then exp(-c*(t - t2)) decaying to e^-5 at the end.
+  Jennings-type envelope over the record between the fade-in and fade-out: (t/t1)^2 rising
+  over its first 10 %, flat up to 40 %, then exp(-c*(t - t2)) decaying to e^-5 at its end.
 """
 
 from __future__ import annotations
@@ -35,12 +37,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.signal import butter, freqs
 
 from bayes_sst.twin._command import Command, raised_cosine_envelope
 
 BROADBAND_SIGNALS = ("noise", "earthquake")
 DEFAULT_BROADBAND_DURATION_S = {"noise": 60.0, "earthquake": 30.0}
-DEFAULT_PEAK_ACCELERATION = {"noise": 3.0, "earthquake": 1.5}
+DEFAULT_PEAK_ACCELERATION = {"noise": 10.0, "earthquake": 1.0}
 DEFAULT_BAND_HZ = (1.0, 50.0)
 DEFAULT_TAPER_S = 1.0
 # Kanai-Tajimi ground filter (Tajimi's firm-soil values) and Clough-Penzien high-pass.
@@ -57,6 +60,12 @@ def _highpass(f: np.ndarray, corner: float, order: int = BUTTERWORTH_ORDER) -> n
     """Butterworth high-pass magnitude |HP(f)| = r^n/sqrt(1 + r^2n), r = f/corner (zero phase)."""
     r = f / corner
     return r**order / np.sqrt(1.0 + r ** (2 * order))
+
+
+def _causal_highpass(f: np.ndarray, corner: float, order: int = BUTTERWORTH_ORDER) -> np.ndarray:
+    """Complex response of the analog Butterworth high-pass (causal), at frequencies f (Hz)."""
+    b, a = butter(order, 2.0 * math.pi * corner, btype="highpass", analog=True)
+    return freqs(b, a, 2.0 * math.pi * np.asarray(f, dtype=float))[1]
 
 
 def _lowpass(f: np.ndarray, corner: float, order: int = BUTTERWORTH_ORDER) -> np.ndarray:
@@ -134,10 +143,12 @@ def broadband_command(
         a0 = np.fft.rfft(white) * shape
     else:
         shaped = np.fft.irfft(np.fft.rfft(white) * kanai_tajimi(f) * _lowpass(f, high), n_fft)
-        a0 = np.fft.rfft(shaped * jennings_envelope(local, duration_s))
+        # The shaking starts once the fade-in is over, so the fade-in meets a table at rest.
+        strong = duration_s - 2.0 * taper_s
+        a0 = np.fft.rfft(shaped * jennings_envelope(local - taper_s, strong))
     w = 2.0 * math.pi * f
     with np.errstate(divide="ignore", invalid="ignore"):
-        u_spec = np.where(f > 0.0, -a0 * _highpass(f, BASELINE_HIGHPASS_HZ) / w**2, 0.0)
+        u_spec = np.where(f > 0.0, -a0 * _causal_highpass(f, BASELINE_HIGHPASS_HZ) / w**2, 0.0)
     u0 = np.fft.irfft(u_spec, n_fft)[:n]
     v0 = np.fft.irfft(1j * w * u_spec, n_fft)[:n]
     acc0 = np.fft.irfft(-(w**2) * u_spec, n_fft)[:n]

@@ -233,9 +233,9 @@ def simulate(
         lanes = [i for i in range(len(items)) if rates[i] == rate and steps[i] == k]
         out = _run(truth, [decks[i] for i in lanes], [commands[i].u for i in lanes],
                    [commands[i].v for i in lanes], 1.0 / (k * rate), k)
-        for name, values in out.items():
+        for column, values in out.items():
             for i, value in zip(lanes, values):
-                sim[name][i] = value
+                sim[column][i] = value
 
     tests = []
     for i, item in enumerate(items):
