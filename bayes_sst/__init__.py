@@ -8,7 +8,7 @@ start fast.
 
 from __future__ import annotations
 
-import importlib
+from bayes_sst._lazy import lazy_attributes
 
 __version__ = "0.1.0"
 
@@ -23,10 +23,5 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'bayes_sst' has no attribute {name!r}")
-
-
+__getattr__, __dir__ = lazy_attributes('bayes_sst', _LAZY)
 __all__ = sorted(_LAZY)

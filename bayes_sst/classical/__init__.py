@@ -15,7 +15,7 @@ numpy's heavier neighbours (scipy, jax).
 
 from __future__ import annotations
 
-import importlib
+from bayes_sst._lazy import lazy_attributes
 
 _LAZY = {
     "ClassicalResult": "bayes_sst.classical._identify",
@@ -32,14 +32,5 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'bayes_sst.classical' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(list(globals()) + list(_LAZY))
-
-
+__getattr__, __dir__ = lazy_attributes('bayes_sst.classical', _LAZY)
 __all__ = sorted(_LAZY)

@@ -16,7 +16,7 @@ numpy and scipy, plus bayes_sst.physics for the one formula (which loads jax).
 
 from __future__ import annotations
 
-import importlib
+from bayes_sst._lazy import lazy_attributes
 
 # lazy, so that the command line registers `ocrf` without loading scipy or jax
 _LAZY = {
@@ -33,14 +33,5 @@ _LAZY = {
 }
 
 
-def __getattr__(name):
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'bayes_sst.oil' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(list(globals()) + list(_LAZY))
-
-
+__getattr__, __dir__ = lazy_attributes('bayes_sst.oil', _LAZY)
 __all__ = sorted(_LAZY)
