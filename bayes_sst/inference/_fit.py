@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -10,12 +9,9 @@ from typing import Any, Callable
 import numpy as np
 
 from bayes_sst.inference._priors import Priors, make_priors
-from bayes_sst.inference._statistics import COEFFICIENTS, LaggedMoments, lagged_moments
+from bayes_sst.inference._statistics import LaggedMoments, lagged_moments
 from bayes_sst.io import Series
 from bayes_sst.signals import PreparedTest, SignalOptions, prepare_series
-
-POPULATION_NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
-
 
 @dataclass(frozen=True)
 class SamplerSettings:
@@ -30,7 +26,7 @@ class SamplerSettings:
     # a dense mass matrix for the five global sites (alpha and the between-test spreads are
     # correlated), diagonal for the per-test noise sites: a fully dense one in 2J+5
     # dimensions adapts poorly for hundreds of tests (maximum tree depth on every draw)
-    dense_mass: bool | list = (("alpha", "spread"),)
+    dense_mass: bool | tuple[tuple[str, ...], ...] = (("alpha", "spread"),)
 
 
 @dataclass
@@ -136,7 +132,7 @@ def fit(
         table_force_model,
         target_accept_prob=settings.target_accept,
         max_tree_depth=settings.max_tree_depth,
-        dense_mass=list(settings.dense_mass) if isinstance(settings.dense_mass, tuple) else settings.dense_mass,
+        dense_mass=settings.dense_mass if isinstance(settings.dense_mass, bool) else list(settings.dense_mass),
         init_strategy=init_to_value(values=_initial_values(moments, priors.alpha_mean)),
     )
     n_devices = jax.local_device_count()
@@ -163,7 +159,7 @@ def fit(
     _say(progress, f"sampled in {timings['sampling']:.1f} s (compilation included)")
 
     start = time.perf_counter()
-    tree = build_tree(seed + 1, samples, extra, table, scaled, moments, prepared, priors, settings, series)
+    tree = build_tree(seed + 1, samples, extra, scaled, moments, prepared, priors, settings, series)
     timings["posterior"] = time.perf_counter() - start
     return FitResult(
         tree=tree,

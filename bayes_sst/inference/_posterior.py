@@ -19,7 +19,7 @@ def _padded(arrays, fill=np.nan):
     return out
 
 
-def build_tree(seed, samples, extra, table, scaled, moments, prepared, priors, settings, series):
+def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings, series):
     """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
     from bayes_sst.inference._collapsed import draw_coefficients, moment_table
 

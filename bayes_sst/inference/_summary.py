@@ -10,6 +10,7 @@ from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 
+# the population values reported (physics.PARAMETER_NAMES, spelled out to keep JAX off this path)
 POPULATION = ("Me", "Ke", "Ce", "alpha", "Fmu")
 RHAT_LIMIT = 1.01
 ESS_LIMIT = 400

@@ -114,7 +114,7 @@ def common_signals(records) -> tuple[str, str]:
             return pair
     lacking = [r.id for r in records if not any(all(r.get(c) is not None for c in p) for p in SIGNAL_PAIRS)]
     raise ValueError("a frequency response needs a command and the measured motion, (a_cmd, a) or "
-                     f"(u_cmd, u), in every test; " + (f"tests {lacking} record neither" if lacking else
+                     "(u_cmd, u), in every test; " + (f"tests {lacking} record neither" if lacking else
                      "the tests share neither pair"))
 
 
