@@ -159,7 +159,7 @@ def fit(
     _say(progress, f"sampled in {timings['sampling']:.1f} s (compilation included)")
 
     start = time.perf_counter()
-    tree = build_tree(seed + 1, samples, extra, scaled, moments, prepared, priors, settings, series)
+    tree = build_tree(seed + 1, samples, extra, scaled, moments, prepared, priors, settings, series, signals)
     timings["posterior"] = time.perf_counter() - start
     return FitResult(
         tree=tree,

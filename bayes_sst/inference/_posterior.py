@@ -19,7 +19,7 @@ def _padded(arrays, fill=np.nan):
     return out
 
 
-def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings, series):
+def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings, series, signals=None):
     """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
     from bayes_sst.inference._collapsed import draw_coefficients, moment_table
 
@@ -121,6 +121,10 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
         "sampler": json.dumps(asdict(settings)),
         "priors": json.dumps(priors.describe()),
         "model": "hierarchical power-law damping + Coulomb friction, AR(1) residuals, coefficients collapsed",
+        # where the series lay and how its signals were prepared: enough to rebuild the
+        # exact regressors (report, diagnosis, design) from the run folder alone
+        "series_path": str(series.path.resolve()) if series.path is not None else "",
+        "signal_options": json.dumps(asdict(signals)) if signals is not None else "",
     }
     tree = xr.DataTree.from_dict(
         {

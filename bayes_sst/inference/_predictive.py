@@ -1,0 +1,121 @@
+"""Posterior predictive force of a run, test by test, from the same regressors as the likelihood.
+
+For test j and posterior draw s the replicated force at the kept samples is
+
+    F_rep = m_payload*a + X(alpha_s) . theta_js + e,   e_t = phi_js*e_(t-1) + w_t,  w ~ N(0, sigma_js^2)
+
+with X = (a, u, filter(|v|^alpha sign v), filter(sign v)) exactly as in
+bayes_sst.inference._statistics, and e started from its stationary law sd sigma/sqrt(1-phi^2).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from bayes_sst.inference._statistics import COEFFICIENTS, damping_columns
+from bayes_sst.signals import PreparedTest, SignalOptions
+
+
+def design_matrix(test: PreparedTest, alpha: float) -> np.ndarray:
+    """(n, 4) regressors [a, u, filter(|v|^alpha sign v), filter(sign v)] at the kept samples."""
+    damping = test.regressor(damping_columns(np.array([float(alpha)])))[0]
+    return np.column_stack([test.a, test.u, damping, test.friction_sign])
+
+
+def response(test: PreparedTest) -> np.ndarray:
+    """y = F - m_payload*a: the force the table's own parameters must explain."""
+    return test.F - test.payload_kg * test.a
+
+
+def run_signal_options(tree) -> SignalOptions:
+    """The signal options a run was fitted with (defaults for runs that did not record them)."""
+    text = tree.attrs.get("signal_options", "")
+    return SignalOptions(**json.loads(text)) if text else SignalOptions()
+
+
+def run_prepared(tree, series=None) -> list[PreparedTest]:
+    """Re-prepare the run's series exactly as the fit did, in the run's test order.
+
+    `series` may be given (a Series); otherwise it is read from the path the run recorded.
+    """
+    from bayes_sst.io import load_series
+    from bayes_sst.signals import prepare_series
+
+    if series is None:
+        path = tree.attrs.get("series_path", "")
+        if not path:
+            raise ValueError("the run does not record its series folder; pass the series explicitly")
+        series = load_series(path)
+    prepared = {t.id: t for t in prepare_series(series, run_signal_options(tree))}
+    wanted = [str(t) for t in tree["posterior"]["test"].values]
+    missing = [t for t in wanted if t not in prepared]
+    if missing:
+        raise ValueError(f"series {series.name!r} lacks the run's tests {missing[:5]}")
+    return [prepared[t] for t in wanted]
+
+
+@dataclass(frozen=True)
+class TestPredictive:
+    """Posterior predictive of one test at its kept samples (all arrays over the test's samples)."""
+
+    __test__ = False
+
+    test_id: str
+    t: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    observed: np.ndarray  # measured force after the low-pass, N
+    keep: np.ndarray  # samples that enter the likelihood
+    mean: np.ndarray  # (draws, n) model force without residual, N
+    replicated: np.ndarray  # (draws, n) model force plus an AR(1) residual draw, N
+
+
+def _flat(tree, name):
+    values = np.asarray(tree["posterior"][name].values)
+    return values.reshape((-1,) + values.shape[2:])
+
+
+def _ar1_paths(phi, sigma, n, rng):
+    """(draws, n) stationary AR(1) paths with coefficient phi and innovation sd sigma per draw."""
+    draws = len(phi)
+    w = rng.standard_normal((draws, n)) * sigma[:, None]
+    e = np.empty((draws, n))
+    e[:, 0] = w[:, 0] / np.sqrt(np.maximum(1.0 - phi**2, 1e-6))
+    for t in range(1, n):
+        e[:, t] = phi * e[:, t - 1] + w[:, t]
+    return e
+
+
+def posterior_predictive(tree, prepared: list[PreparedTest], *, n_draws: int = 200, seed: int = 0):
+    """TestPredictive for every test, from n_draws posterior draws picked evenly over the chains."""
+    rng = np.random.default_rng(seed)
+    alpha = _flat(tree, "alpha")
+    total = len(alpha)
+    pick = np.linspace(0, total - 1, min(n_draws, total)).round().astype(int)
+    theta = np.stack([_flat(tree, f"{name}_test") for name in COEFFICIENTS], axis=-1)[pick]  # (d, J, 4)
+    phi = _flat(tree, "phi")[pick]
+    sigma = _flat(tree, "sigma")[pick]
+    alpha = alpha[pick]
+    out = []
+    for j, test in enumerate(prepared):
+        # one filtering pass for all draws' alphas: the damping column is the only one that moves
+        damping = test.regressor(damping_columns(alpha))[: len(alpha)]  # (d, n)
+        th = theta[:, j]
+        mean = (
+            test.payload_kg * test.a
+            + th[:, 0:1] * test.a
+            + th[:, 1:2] * test.u
+            + th[:, 2:3] * damping
+            + th[:, 3:4] * test.friction_sign
+        )
+        noise = _ar1_paths(phi[:, j], sigma[:, j], len(test.index), rng)
+        out.append(
+            TestPredictive(
+                test_id=test.id, t=test.t, u=test.u, v=test.v, observed=test.F, keep=test.keep,
+                mean=mean, replicated=mean + noise,
+            )
+        )
+    return out
