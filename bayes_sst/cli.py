@@ -114,9 +114,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     from bayes_sst.classical._command import add_parser as add_classical
     from bayes_sst.oil._command import add_parser as add_ocrf
+    from bayes_sst.report._command import add_parser as add_report
+    from bayes_sst.diagnosis._command import add_parser as add_diagnose
+    from bayes_sst.design._command import add_parser as add_design
 
     add_classical(sub)
     add_ocrf(sub)
+    add_report(sub)
+    add_diagnose(sub)
+    add_design(sub)
 
     p = sub.add_parser("summary", help="print the posterior summary of a run folder")
     p.add_argument("run", help="run folder written by 'bayes-sst fit'")

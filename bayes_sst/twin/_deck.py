@@ -3,6 +3,7 @@
     M*dv/dt = F_A - Ke*u - D(v),   D(v) = (Ce*|v|^alpha + Ff(|v|))*sign(v),
     Ff(s) = Fk + (Fs - Fk)*exp(-(s/v_s)^2),
 
+(plus the optional effects of DeckParams: cubic spring, hinge friction, flexible specimen)
 and at v = 0 the friction takes whatever value in [-Fs, Fs] holds the deck still. M is Me
 plus any rigid payload.
 
@@ -37,7 +38,12 @@ NEWTON_ITERATIONS = 5
 
 class DeckParams(NamedTuple):
     """mass M (kg), Ke (N/m), Ce (N/(m/s)^alpha), alpha, Fk kinetic and Fs static friction (N),
-    stribeck_velocity v_s (m/s)."""
+    stribeck_velocity v_s (m/s).
+
+    Effects beyond the base model (zero: off): cubic k3 (N/m^3), the spring being
+    Ke*u + k3*u^3; hinge kh (N/m^2), friction levels raised by kh*u^2; a flexible specimen of
+    mass specimen_mass (kg), stiffness specimen_k (N/m) and damping specimen_c (N*s/m).
+    """
 
     mass: float
     Ke: float
@@ -46,6 +52,11 @@ class DeckParams(NamedTuple):
     Fk: float
     Fs: float
     stribeck_velocity: float
+    cubic: float = 0.0
+    hinge: float = 0.0
+    specimen_mass: float = 0.0
+    specimen_k: float = 0.0
+    specimen_c: float = 0.0
 
 
 def friction_level(deck: DeckParams, speed):
@@ -78,11 +89,36 @@ def sliding_speed(deck: DeckParams, drive, dt):
 
 
 def deck_step(deck: DeckParams, u, v, actuator_force, dt):
-    """Advance (u, v) by dt under the actuator force; returns u1, v1 and a = (v1 - v)/dt."""
-    drive = deck.mass * v / dt + actuator_force - deck.Ke * u
+    """Advance (u, v) by dt under the actuator force; returns u1, v1 and a = (v1 - v)/dt.
+
+    The spring is Ke*u + k3*u^3 and the hinge friction kh*u^2 raises both friction levels,
+    all taken at the step's start (u is known there, so the implicit solve is unchanged).
+    """
+    hinge = deck.hinge * u * u
+    deck = deck._replace(Fk=deck.Fk + hinge, Fs=deck.Fs + hinge)
+    drive = deck.mass * v / dt + actuator_force - deck.Ke * u - deck.cubic * u * u * u
     magnitude = jnp.abs(drive)
     sticks = magnitude <= deck.Fs
     # Stuck lanes get a harmless drive so the solver sees no 0/0; their result is discarded.
     w = sliding_speed(deck, jnp.where(sticks, deck.Fs + deck.mass / dt, magnitude), dt)
     v1 = jnp.where(sticks, 0.0, jnp.sign(drive) * w)
     return u + dt * v1, v1, (v1 - v) / dt
+
+
+def specimen_step(deck: DeckParams, x, xd, a_deck, dt):
+    """Advance a specimen's drift x relative to the deck (semi-implicit Euler):
+
+        m_s*(a + x'') = -k_s*x - c_s*x'',   i.e.  x'' = -(k_s*x + c_s*x')/m_s - a,
+
+    returns x1, xd1; a lane without a specimen (m_s = 0) stays at rest.
+    """
+    has = deck.specimen_mass > 0.0
+    mass = jnp.where(has, deck.specimen_mass, 1.0)
+    xdd = jnp.where(has, -(deck.specimen_k * x + deck.specimen_c * xd) / mass - a_deck, 0.0)
+    xd1 = xd + dt * xdd
+    return x + dt * xd1, xd1
+
+
+def specimen_shear(deck: DeckParams, x, xd):
+    """Force of the specimen on the deck, k_s*x + c_s*x' (= -m_s*(a + x''), the base shear reversed)."""
+    return deck.specimen_k * x + deck.specimen_c * xd

@@ -1,6 +1,7 @@
 """Fixed-step integration of the closed-loop table, in JAX: lax.scan in time, vmap over tests.
 
-One internal step (length dt) of the state (u, v, P_L, Q):
+One internal step (length dt) of the state (u, v, P_L, Q, x, x') (x: a flexible specimen's
+drift relative to the deck, zero without one):
 
 1. F_A = A_p*P_L and the controller's flow demand from the state at the step's start;
 2. the deck moves under F_A (semi-implicit, stick-slip friction: see _deck.py);
@@ -24,7 +25,7 @@ import jax.numpy as jnp
 from jax import lax
 
 import bayes_sst._jaxconfig  # noqa: F401  (float64 before any array)
-from bayes_sst.twin._deck import DeckParams, deck_step
+from bayes_sst.twin._deck import DeckParams, deck_step, specimen_shear, specimen_step
 from bayes_sst.twin._hydraulics import (
     ServoParams,
     actuator_force,
@@ -35,14 +36,16 @@ from bayes_sst.twin._hydraulics import (
 
 
 def _step(deck: DeckParams, servo: ServoParams, dt, state, command):
-    u, v, p_load, q = state
+    u, v, p_load, q, x, xd = state
     u_cmd, v_cmd = command
     force = actuator_force(servo, p_load)
     q_demand = flow_demand(servo, u_cmd, v_cmd, u, p_load)
-    u1, v1, a = deck_step(deck, u, v, force, dt)
+    # A flexible specimen (if any) pulls on the deck with its spring and damper.
+    u1, v1, a = deck_step(deck, u, v, force + specimen_shear(deck, x, xd), dt)
+    x1, xd1 = specimen_step(deck, x, xd, a, dt)
     q1 = valve_step(servo, q, q_demand, dt)
     p1 = pressure_step(servo, p_load, q1, v1, dt)
-    return (u1, v1, p1, q1), (u, v1, a, force)
+    return (u1, v1, p1, q1, x1, xd1), (u, v1, a, force)
 
 
 def _one_test(deck: DeckParams, servo: ServoParams, dt, u_cmd, v_cmd):
@@ -56,7 +59,7 @@ def _one_test(deck: DeckParams, servo: ServoParams, dt, u_cmd, v_cmd):
         return state, record
 
     zero = jnp.zeros((), dtype=jnp.float64)
-    _, records = lax.scan(sample, (zero, zero, zero, zero), (u_cmd, v_cmd))
+    _, records = lax.scan(sample, (zero,) * 6, (u_cmd, v_cmd))
     return records
 
 

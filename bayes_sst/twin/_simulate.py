@@ -50,8 +50,14 @@ def _bucket(n: int) -> int:
 
 
 def deck_of_test(truth: TableTruth, factors: Mapping[str, float], payload_kg: float) -> DeckParams:
-    """The deck of one test: population truth times spread factors, payload on the deck."""
+    """The deck of one test: population truth times spread factors, payload on the deck.
+
+    Effects (off unless switched on in the truth): cubic spring k3 = K'e/h^2, hinge friction
+    kh = Fp/h^2, a specimen with k_s = m_s*(2*pi*f_s)^2 and c_s = 2*zeta_s*m_s*2*pi*f_s.
+    """
     fmu = truth.friction_with_payload(truth.Fmu * factors["Fmu"], payload_kg)
+    h2 = truth.strut_h**2
+    omega_s = 2.0 * math.pi * truth.specimen_frequency
     return DeckParams(
         mass=truth.Me * factors["Me"] + payload_kg,
         Ke=truth.Ke * factors["Ke"],
@@ -60,7 +66,27 @@ def deck_of_test(truth: TableTruth, factors: Mapping[str, float], payload_kg: fl
         Fk=fmu,
         Fs=truth.static_ratio * fmu,
         stribeck_velocity=truth.stribeck_velocity,
+        cubic=truth.cubic_stiffness / h2,
+        hinge=truth.position_friction / h2,
+        specimen_mass=truth.specimen_mass,
+        specimen_k=truth.specimen_mass * omega_s**2,
+        specimen_c=2.0 * truth.specimen_damping * truth.specimen_mass * omega_s,
     )
+
+
+def _drifted(truth: TableTruth, factors: dict[str, float], position: float) -> dict[str, float]:
+    """Spread factors with the campaign drift: Fmu and Ce times (1 - drift*s), s in [0, 1]."""
+    out = dict(factors)
+    out["Fmu"] *= 1.0 - truth.friction_drift * position
+    out["Ce"] *= 1.0 - truth.damping_drift * position
+    return out
+
+
+def _delayed(t: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
+    """values(t - delay) by linear interpolation (the first value held before the record starts)."""
+    if delay == 0.0:
+        return values
+    return np.interp(t - delay, t, values)
 
 
 def _test_truth(truth: TableTruth, deck: DeckParams, factors: Mapping[str, float],
@@ -224,6 +250,7 @@ def simulate(
         commands.append(command)
         n_out.append(n)
         test_factors = {p: float(f[i]) for p, f in factors.items()}
+        test_factors = _drifted(truth, test_factors, i / max(1, len(items) - 1))
         test_factor_list.append(test_factors)
         decks.append(deck_of_test(truth, test_factors, item.payload_kg))
 
@@ -241,7 +268,8 @@ def simulate(
     for i, item in enumerate(items):
         rate, k = rates[i], steps[i]
         t = np.arange(n_out[i]) / rate
-        measured = add_sensor_noise({"u": sim["u"][i], "a": sim["a"][i], "F": sim["F"][i]},
+        force = _delayed(t, sim["F"][i], truth.force_delay)
+        measured = add_sensor_noise({"u": sim["u"][i], "a": sim["a"][i], "F": force},
                                     noise, noise_rngs[i], rate)
         columns = {
             "t": t,

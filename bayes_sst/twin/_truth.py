@@ -43,6 +43,21 @@ class TableTruth:
 
     Limits: stroke (m, half stroke), max_velocity (m/s), max_acceleration (m/s^2),
     max_force (N).
+
+    Effects the base force model leaves out (all off by default; see EFFECT_FIELDS and
+    docs/diagnosis.md). static_ratio > 1 is the stiction switch; a smaller bulk_modulus the
+    oil column's. The others:
+
+    * cubic_stiffness K'e (N/m): strut spring Ke*u + K'e*(u/h)^2*u, h = strut_h
+      (physics.strut_cubic_stiffness gives the gas strut's value);
+    * position_friction Fp (N): hinge friction Fp*(u/h)^2 added to the friction level, so the
+      force Fp*(u/h)^2*sign(v);
+    * specimen_mass m_s (kg), specimen_frequency f_s (Hz), specimen_damping zeta_s (-): a flexible
+      single-degree-of-freedom specimen whose base shear m_s*(a + x'') loads the deck, with
+      x'' + 2*zeta_s*w_s*x' + w_s^2*x = -a (x the specimen's drift relative to the deck);
+    * force_delay d (s): the force channel records F(t - d);
+    * friction_drift, damping_drift (-): Fmu and Ce of the test at campaign position
+      s = (order - 1)/(n - 1) are multiplied by (1 - drift*s) (oil warming over the campaign).
     """
 
     Me: float
@@ -73,6 +88,15 @@ class TableTruth:
     max_acceleration: float
     max_force: float
 
+    cubic_stiffness: float = 0.0
+    position_friction: float = 0.0
+    specimen_mass: float = 0.0
+    specimen_frequency: float = 10.0
+    specimen_damping: float = 0.03
+    force_delay: float = 0.0
+    friction_drift: float = 0.0
+    damping_drift: float = 0.0
+
     def __post_init__(self):
         for name, value in asdict(self).items():
             if not math.isfinite(value):
@@ -80,7 +104,7 @@ class TableTruth:
             if value < 0.0:
                 raise ValueError(f"TableTruth.{name} must not be negative, got {value!r}")
         for name in ("Me", "deck_mass", "bulk_modulus", "piston_area", "oil_volume",
-                     "valve_time_constant", "stribeck_velocity", "stroke"):
+                     "valve_time_constant", "stribeck_velocity", "stroke", "specimen_frequency"):
             if getattr(self, name) <= 0.0:
                 raise ValueError(f"TableTruth.{name} must be positive, got {getattr(self, name)!r}")
         if not 0.0 < self.alpha <= 1.0:
@@ -88,6 +112,24 @@ class TableTruth:
             raise ValueError(f"TableTruth.alpha must lie in (0, 1], got {self.alpha!r}")
         if self.static_ratio < 1.0:
             raise ValueError(f"TableTruth.static_ratio must be >= 1, got {self.static_ratio!r}")
+        for name in ("friction_drift", "damping_drift"):
+            if getattr(self, name) >= 1.0:
+                raise ValueError(f"TableTruth.{name} is a relative fall over the campaign and must be < 1, "
+                                 f"got {getattr(self, name)!r}")
+
+    @property
+    def active_effects(self) -> dict[str, float]:
+        """The effect fields switched on (non-default), by field name."""
+        defaults = {"specimen_frequency": 10.0, "specimen_damping": 0.03}
+        out = {}
+        for name in EFFECT_FIELDS:
+            value = getattr(self, name)
+            if name in defaults:
+                if self.specimen_mass > 0.0:
+                    out[name] = value
+            elif value != 0.0:
+                out[name] = value
+        return out
 
     @property
     def hold_down_force(self) -> float:
@@ -120,6 +162,7 @@ class TableTruth:
             "Fmu": self.Fmu,
             "static_ratio": self.static_ratio,
             "f_oil_hz": self.f_oil_hz(),
+            **self.active_effects,
         }
 
     def table_description(self) -> dict[str, Any]:
@@ -217,6 +260,10 @@ def _sst_paper() -> TableTruth:
         max_force=0.02 * 21e6,
     )
 
+
+# Fields that switch on an effect the base force model leaves out (static_ratio is stiction).
+EFFECT_FIELDS = ("cubic_stiffness", "position_friction", "specimen_mass", "specimen_frequency",
+                 "specimen_damping", "force_delay", "friction_drift", "damping_drift")
 
 PRESETS: dict[str, TableTruth] = {"sst-paper": _sst_paper()}
 

@@ -1,0 +1,76 @@
+"""The diagnosis's view of a series: every periodic test as EffectData (see bayes_sst.effects).
+
+Signal treatment as in bayes_sst.signals (cut-off 4f, decimation to about 8f), with one
+difference: every sample of the steady window enters (no reversal band), because stiction
+lives at the reversals. (A cut-off of 8f was tried: the twin's sticking at reversals then
+leaves force transients that the base model cannot follow and the test-to-test spread
+absorbs them, which blurs every effect.)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bayes_sst.effects import EffectData
+from bayes_sst.io import Series
+from bayes_sst.signals import SignalOptions, prepare_series, time_derivative, zero_phase_lowpass
+
+DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0)
+DEFAULT_STRUT_H = 1.0
+
+
+def strut_height(series: Series) -> float:
+    """h (m) of the table description's struts, else 1 m (then K'e and Fp are per (u/1 m)^2)."""
+    strut = (series.table or {}).get("strut") or {}
+    h = strut.get("h_m")
+    try:
+        h = float(h)
+    except (TypeError, ValueError):
+        return DEFAULT_STRUT_H
+    return h if math.isfinite(h) and h > 0 else DEFAULT_STRUT_H
+
+
+def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> list[EffectData]:
+    """EffectData of every periodic test of the series, in the series' order."""
+    prepared = prepare_series(series, options)
+    records = {r.spec.id: r for r in series.periodic_tests}
+    orders = [p.order for p in prepared]
+    known = [o for o in orders if o is not None]
+    first, last = (min(known), max(known)) if known else (0, 0)
+    h = strut_height(series)
+    out = []
+    for i, p in enumerate(prepared):
+        record = records[p.id]
+        fs, cutoff = p.sample_rate_hz, p.cutoff_hz
+        margin = int(np.ceil(4.0 * fs / cutoff))
+        lo = max(0, p.window.start - margin)
+        hi = min(len(record.t), p.window.stop + margin)
+        measured_a = record.get("a")
+        if measured_a is None:
+            measured_a = time_derivative(time_derivative(zero_phase_lowpass(record.u, cutoff, fs), fs), fs)
+        a_raw = np.asarray(measured_a, dtype=float)
+        if p.order is not None and last > first:
+            position = (p.order - first) / (last - first)
+        else:
+            position = i / max(1, len(prepared) - 1)
+        out.append(EffectData(
+            id=p.id,
+            frequency_hz=p.frequency_hz,
+            amplitude_m=p.amplitude_m,
+            payload_kg=p.payload_kg,
+            position=float(position),
+            strut_h=h,
+            sample_rate_hz=fs,
+            cutoff_hz=cutoff,
+            lo=lo,
+            index=p.index,
+            u_full=zero_phase_lowpass(record.u, cutoff, fs)[lo:hi],
+            v_full=p.velocity_full[lo:hi],
+            a_full=zero_phase_lowpass(a_raw, cutoff, fs)[lo:hi],
+            F_full=zero_phase_lowpass(record.F, cutoff, fs)[lo:hi],
+            a_record=a_raw[:hi],
+            period_samples=p.window.period_samples,
+        ))
+    return out

@@ -1,0 +1,439 @@
+"""diagnose(): where the base model misses a series, which effect is responsible, how far it shrinks.
+
+1. Base model (bayes_sst.diagnosis._engine) fitted to every sample of every periodic test's
+   steady window; its residuals r at the kept samples.
+2. Noise floor, model-free: the deterministic response of a periodic test repeats every
+   period T, the noise does not, so for each test floor_j^2 = mean((e(t+T) - e(t))^2)/2 with
+   e the base residual at the full rate (any model error is periodic and cancels).
+3. Where: the excess r^2 - floor_j^2 summed over regions of the data (reversal band against
+   mid-stroke, large |u|, |v|, |a|, test frequency, amplitude, payload, campaign order,
+   harmonics of the test frequency), as shares of the total excess.
+4. Which: every effect screened and scored (bayes_sst.diagnosis._screen) by the sum of
+   leave-one-test-out elpd differences with its standard error; an effect is selected when it
+   is not at a physical bound, score >= MIN_SCORE nats, and either score >= Z_SELECT*score_se
+   or a sign test on the tests says it helps consistently: the number k of tests improved by
+   more than IMPROVED_NATS has P(X >= k | X ~ Binomial(J, 1/2)) <= SIGN_P. (An effect that acts
+   on a few tests only, such as a delay on the fast ones, has heterogeneous per-test gains and
+   a large score_se although every test improves; the sign test sees that), or the score is
+   Z_LOSS times the scatter of the tests it makes worse (loss_scaled_z). Greedy: after a
+   selection the rest are re-scored on top of it.
+5. How far: residual RMS before and after (overall and in the top region), the share of the
+   excess mean square removed, shrink = 1 - (rms_after^2 - floor^2)/(rms_before^2 - floor^2),
+   and the relative shift of the base parameters.
+Broadband tests add the oil_column check (bayes_sst.diagnosis._oil), scored on their
+command-to-motion frequency response; when it is the only effect selected, noise_floor,
+rms_before, rms_after and shrink are those of the frequency-response misfit (dimensionless).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, effect_data
+from bayes_sst.diagnosis._engine import ModelFit, Scorer
+from bayes_sst.diagnosis._oil import oil_column_check
+from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
+from bayes_sst.effects import FORCE_EFFECTS, Effect, EffectData
+from bayes_sst.io import Series
+from bayes_sst.signals import SignalOptions
+
+Z_SELECT = 2.5
+MIN_SCORE = 15.0
+SIGN_P = 0.002
+IMPROVED_NATS = 1.0
+Z_LOSS = 5.0
+NULL_NATS_PER_TEST = 0.5
+MAX_SELECTED = 3
+REVERSAL_SHARE = 0.2
+
+
+@dataclass
+class Diagnosis:
+    """The result of diagnose(); to_json() gives diagnosis.json's content."""
+
+    series_name: str
+    selected: list[str]
+    ranking: list[dict[str, Any]]
+    where: list[dict[str, Any]]
+    noise_floor: float
+    rms_before: float
+    rms_after: float
+    shrink: float
+    base_shift: dict[str, float]
+    base: dict[str, float]
+    final: dict[str, float]
+    region: dict[str, Any]
+    steps: list[dict[str, Any]]
+    oil: dict[str, Any] | None
+    timings: dict[str, float]
+    settings: dict[str, Any]
+    # arrays kept for the figures (not in the json)
+    figures: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @property
+    def verdict(self) -> str:
+        if not self.selected:
+            return ("verdict: none - no candidate effect improves the fit beyond the noise "
+                    f"(residual RMS {self.rms_before:.0f} N, noise floor {self.noise_floor:.0f} N)")
+        parts = []
+        for name in self.selected:
+            entry = next(r for r in self.ranking if r["name"] == name)
+            params = ", ".join(f"{k} = {v['mean']:.4g}" for k, v in entry["params"].items())
+            parts.append(f"{name} ({params})")
+        return (f"verdict: {' + '.join(parts)}; residual RMS {self.rms_before:.0f} -> {self.rms_after:.0f} N "
+                f"(noise floor {self.noise_floor:.0f} N), {100 * self.shrink:.0f} % of the excess removed")
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "series": self.series_name,
+            "verdict": self.verdict,
+            "selected": list(self.selected),
+            "ranking": self.ranking,
+            "where": self.where,
+            "noise_floor": self.noise_floor,
+            "rms_before": self.rms_before,
+            "rms_after": self.rms_after,
+            "shrink": self.shrink,
+            "base_shift": self.base_shift,
+            "base": self.base,
+            "final": self.final,
+            "located_region": self.region,
+            "steps": self.steps,
+            "oil_column": self.oil,
+            "timings_s": self.timings,
+            "settings": self.settings,
+            "units": "SI (N, kg, m, s, Hz); score and score_se in nats (log predictive density)",
+        }
+
+
+# --- noise floor and residual location ---------------------------------------------------------
+
+def full_rate_residual(test: EffectData, fit: ModelFit, j: int) -> np.ndarray:
+    """e = F - m_payload*a - X theta_j at every full-rate sample (base coefficients only)."""
+    theta = fit.theta[j][:4]
+    v = test.v_full
+    damping = test.filtered_full(np.abs(v) ** fit.alpha * np.sign(v))
+    sign = test.filtered_full(np.sign(v))
+    model = theta[0] * test.a_full + theta[1] * test.u_full + theta[2] * damping + theta[3] * sign
+    return test.F_full - test.payload_kg * test.a_full - model
+
+
+def noise_floor(test: EffectData, residual_full: np.ndarray) -> float:
+    """sqrt(mean((e(t+T) - e(t))^2)/2) over the kept samples, e(t+T) by linear interpolation at
+    the full rate (t - T where t + T leaves the steady window).
+
+    Everything that does not repeat from one cycle to the next counts as noise: sensor noise,
+    and also the sample-phase jitter of sharp events at reversals (a friction jolt caught by the
+    accelerometer at a different phase in every cycle when the period is not a whole number of
+    samples), which no force model can explain either.
+    """
+    grid = np.arange(len(residual_full))
+    pos = test.kept.astype(float)
+    # stay inside the steady window: the margins around it are ramps, not repeats
+    first, last = pos[0], pos[-1]
+    ahead = pos + test.period_samples
+    other = np.where(ahead <= last, ahead, pos - test.period_samples)
+    ok = (other >= first) & (other <= last)
+    d = np.interp(other[ok], grid, residual_full) - residual_full[test.kept[ok]]
+    return float(math.sqrt(np.mean(d * d) / 2.0))
+
+
+def _harmonic_power(test: EffectData, r: np.ndarray, k: int) -> float:
+    """Mean-square of r's component at the k-th harmonic of the test frequency (least squares)."""
+    t = test.kept / test.sample_rate_hz
+    w = 2.0 * math.pi * k * test.frequency_hz
+    basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
+    coef, *_ = np.linalg.lstsq(basis, r, rcond=None)
+    return float(np.mean((basis @ coef) ** 2))
+
+
+def locate(tests: Sequence[EffectData], residuals, floors) -> list[dict[str, Any]]:
+    """Shares of the excess r^2 - floor^2 carried by regions of the data, largest first."""
+    excess, masks, floor_sq = [], {}, []
+    feats = {"v": [], "u": [], "a": [], "f": [], "amp": [], "payload": [], "pos": []}
+    for t, r, fl in zip(tests, residuals, floors):
+        excess.append(r * r - fl * fl)
+        floor_sq.append(np.full(len(r), fl * fl))
+        for key, x in (("v", t.v), ("u", t.u), ("a", t.a)):
+            feats[key].append(np.abs(x) / max(np.percentile(np.abs(x), 99.5), 1e-300))
+        n = len(r)
+        feats["f"].append(np.full(n, t.frequency_hz))
+        feats["amp"].append(np.full(n, t.amplitude_m))
+        feats["payload"].append(np.full(n, t.payload_kg))
+        feats["pos"].append(np.full(n, t.position))
+    excess = np.concatenate(excess)
+    floor_sq = np.concatenate(floor_sq)
+    f = {k: np.concatenate(v) for k, v in feats.items()}
+    f_med = float(np.median([t.frequency_hz for t in tests]))
+    a_med = float(np.median([t.amplitude_m for t in tests]))
+    masks["near velocity reversals (|v| < 20 % of peak)"] = f["v"] < REVERSAL_SHARE
+    masks["mid-stroke (|v| >= 20 % of peak)"] = f["v"] >= REVERSAL_SHARE
+    masks["large |u| (> 2/3 of peak)"] = f["u"] > 2 / 3
+    masks["small |u| (< 1/3 of peak)"] = f["u"] < 1 / 3
+    masks["large |v| (> 2/3 of peak)"] = f["v"] > 2 / 3
+    masks["large |a| (> 2/3 of peak)"] = f["a"] > 2 / 3
+    masks[f"tests above {f_med:g} Hz"] = f["f"] > f_med
+    masks[f"tests at or below {f_med:g} Hz"] = f["f"] <= f_med
+    masks[f"amplitudes above {a_med:g} m"] = f["amp"] > a_med
+    if np.any(f["payload"] > 0):
+        masks["tests with payload"] = f["payload"] > 0
+        masks["tests without payload"] = f["payload"] == 0
+    masks["first third of the campaign"] = f["pos"] < 1 / 3
+    masks["last third of the campaign"] = f["pos"] > 2 / 3
+    total = float(np.sum(excess))
+    out = []
+    denominator = total if total > 0 else float(np.sum(np.abs(excess))) or 1.0
+    for name, m in masks.items():
+        if not m.any():
+            continue
+        share = float(np.sum(excess[m]) / denominator)
+        sample_share = float(np.mean(m))
+        out.append({"region": name, "share": share, "sample_share": sample_share,
+                    "lift": share / sample_share if sample_share > 0 else 0.0,
+                    # the region's mean square over its own noise floor, minus one
+                    "excess_ratio": float(np.sum(excess[m]) / np.sum(floor_sq[m]))})
+    # harmonics of the test frequency: mean-square of the residual's periodic components
+    n_all = sum(len(r) for r in residuals)
+    for label, ks in (("1st harmonic of the test frequency", (1,)), ("2nd-3rd harmonics", (2, 3)),
+                      ("4th harmonic and above (to the cut-off)", (4, 5, 6, 7))):
+        power = sum(len(r) * sum(_harmonic_power(t, r, k) for k in ks if k * t.frequency_hz < t.cutoff_hz * 1.01)
+                    for t, r in zip(tests, residuals))
+        out.append({"region": label, "share": float(power / denominator), "sample_share": None, "lift": None,
+                    "excess_ratio": float(power / np.sum(floor_sq)), "band": True})
+    out.sort(key=lambda e: -e["share"])
+    return out
+
+
+def _rms(arrays, mask=None) -> float:
+    x = np.concatenate(arrays)
+    if mask is not None:
+        x = x[mask]
+    return float(np.sqrt(np.mean(x * x))) if len(x) else float("nan")
+
+
+def _shrink(before: float, after: float, floor: float) -> float:
+    excess = before**2 - floor**2
+    if excess <= 0:
+        return 0.0
+    # 1 when the residual reaches the noise floor (the floor estimate has its own scatter, so
+    # rms_after may fall a little below it)
+    return float(min(1.0, 1.0 - (after**2 - floor**2) / excess))
+
+
+def _top_region_mask(tests, name: str) -> np.ndarray | None:
+    """The sample mask of a located region, by name (None for harmonic bands)."""
+    vs, us, as_, fs, amps, pays, poss = [], [], [], [], [], [], []
+    for t in tests:
+        vs.append(np.abs(t.v) / max(np.percentile(np.abs(t.v), 99.5), 1e-300))
+        us.append(np.abs(t.u) / max(np.percentile(np.abs(t.u), 99.5), 1e-300))
+        as_.append(np.abs(t.a) / max(np.percentile(np.abs(t.a), 99.5), 1e-300))
+        n = len(t.index)
+        fs.append(np.full(n, t.frequency_hz))
+        amps.append(np.full(n, t.amplitude_m))
+        pays.append(np.full(n, t.payload_kg))
+        poss.append(np.full(n, t.position))
+    v, u, a = np.concatenate(vs), np.concatenate(us), np.concatenate(as_)
+    f, amp, pay, pos = map(np.concatenate, (fs, amps, pays, poss))
+    f_med = float(np.median([t.frequency_hz for t in tests]))
+    a_med = float(np.median([t.amplitude_m for t in tests]))
+    table = {
+        "near velocity reversals (|v| < 20 % of peak)": v < REVERSAL_SHARE,
+        "mid-stroke (|v| >= 20 % of peak)": v >= REVERSAL_SHARE,
+        "large |u| (> 2/3 of peak)": u > 2 / 3,
+        "small |u| (< 1/3 of peak)": u < 1 / 3,
+        "large |v| (> 2/3 of peak)": v > 2 / 3,
+        "large |a| (> 2/3 of peak)": a > 2 / 3,
+        f"tests above {f_med:g} Hz": f > f_med,
+        f"tests at or below {f_med:g} Hz": f <= f_med,
+        f"amplitudes above {a_med:g} m": amp > a_med,
+        "tests with payload": pay > 0,
+        "tests without payload": pay == 0,
+        "first third of the campaign": pos < 1 / 3,
+        "last third of the campaign": pos > 2 / 3,
+    }
+    return table.get(name)
+
+
+# --- the diagnosis -----------------------------------------------------------------------------
+
+def sign_test(diff: np.ndarray) -> float:
+    """One-sided sign test of the per-test elpd differences: P(X >= k), X ~ Binomial(n, 1/2), with
+    k the tests improved by more than IMPROVED_NATS and n those changed by more than that either
+    way (tests the effect leaves alone are ties and drop out, as in the textbook sign test)."""
+    diff = np.asarray(diff)
+    k = int(np.sum(diff > IMPROVED_NATS))
+    n = k + int(np.sum(diff < -IMPROVED_NATS))
+    return float(sum(math.comb(n, i) for i in range(k, n + 1)) / 2.0**n)
+
+
+def loss_scaled_z(diff: np.ndarray) -> float:
+    """score / sqrt(2*sum(min(d_j, 0)^2)): the score against the scatter of the tests it makes worse.
+
+    Without an effect the per-test differences scatter symmetrically about zero, so the losing
+    half measures the null scatter; an effect that helps a subset of tests a lot (a specimen on
+    the fast tests) and costs the rest a fraction of a nat stands out. The scale is floored at
+    NULL_NATS_PER_TEST*sqrt(J) so that an effect that changes nothing cannot divide by zero.
+    """
+    diff = np.asarray(diff)
+    scale = max(math.sqrt(2.0 * float(np.sum(np.minimum(diff, 0.0) ** 2))), NULL_NATS_PER_TEST * math.sqrt(len(diff)))
+    return float(np.sum(diff) / scale)
+
+
+def _entry(score: EffectScore) -> dict[str, Any]:
+    return {"name": score.effect.name, "score": float(score.score), "score_se": float(score.score_se),
+            "z": float(score.score / score.score_se) if score.score_se > 0 else None,
+            "params": score.params, "equation": score.effect.equation,
+            "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound, "sign_p": sign_test(score.diff),
+            "z_loss": loss_scaled_z(score.diff),
+            "test_elpd_diff": [float(x) for x in score.diff]}
+
+
+def _broadband_only(series: Series, started: float) -> Diagnosis:
+    """A series without periodic tests: only the oil_column check applies."""
+    oil = oil_column_check(series)
+    if oil is None:
+        raise ValueError(f"series {series.name!r} has neither periodic nor broadband tests to diagnose")
+    oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
+    chosen = oil["score"] >= MIN_SCORE and oil["z"] is not None and oil["z"] >= Z_SELECT
+    entry = {k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor", "shrink")}
+    return Diagnosis(
+        series_name=series.name, selected=["oil_column"] if chosen else [], ranking=[entry], where=[],
+        noise_floor=oil["noise_floor"], rms_before=oil["rms_before"],
+        rms_after=oil["rms_after"] if chosen else oil["rms_before"], shrink=oil["shrink"] if chosen else 0.0,
+        base_shift={}, base={}, final={}, region={}, steps=[], oil=oil,
+        timings={"total": time.perf_counter() - started}, settings={"z_select": Z_SELECT, "min_score": MIN_SCORE},
+    )
+
+
+def diagnose(
+    series: Series,
+    *,
+    effects: Sequence[Effect] = FORCE_EFFECTS,
+    signals: SignalOptions = DIAGNOSIS_SIGNALS,
+    run_tree=None,
+    progress: Callable[[str], None] | None = None,
+) -> Diagnosis:
+    """Diagnose the sim-to-real gap of the base force model on a series (module docstring)."""
+    say = progress or (lambda message: None)
+    started = time.perf_counter()
+    timings: dict[str, float] = {}
+    if not series.periodic_tests:
+        return _broadband_only(series, started)
+    tests = effect_data(series, signals)
+    stroke = max(float(np.max(np.abs(t.u))) for t in tests)
+    scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
+    alpha_start = None
+    if run_tree is not None:
+        alpha_start = float(run_tree["posterior"]["alpha"].median())
+    say(f"fitting the base model to {len(tests)} periodic tests ...")
+    base = fit_base(scorer, alpha_start=alpha_start)
+    timings["base"] = time.perf_counter() - started
+
+    residual_full = [full_rate_residual(t, base, j) for j, t in enumerate(tests)]
+    floors = np.array([noise_floor(t, e) for t, e in zip(tests, residual_full)])
+    n = np.array([len(t.index) for t in tests])
+    floor = float(np.sqrt(np.sum(n * floors**2) / n.sum()))
+    rms_before = _rms(base.residuals)
+    where = locate(tests, base.residuals, floors)
+
+    say(f"screening {len(effects)} candidate effects ...")
+    current = base
+    remaining = list(effects)
+    selected: list[EffectScore] = []
+    ranking: list[dict[str, Any]] = []
+    steps: list[dict[str, Any]] = []
+    first_round: dict[str, EffectScore] = {}
+    for round_index in range(MAX_SELECTED):
+        t0 = time.perf_counter()
+        scores = []
+        for effect in remaining:
+            if round_index > 0 and first_round[effect.name].score <= 0:
+                continue  # an effect that did not help alone is not tried on top of another
+            scores.append(score_effect(scorer, effect, current))
+        timings[f"round_{round_index + 1}"] = time.perf_counter() - t0
+        scores.sort(key=lambda s: -s.score)
+        if round_index == 0:
+            first_round = {s.effect.name: s for s in scores}
+            ranking = [_entry(s) for s in scores]
+        rms_now = _rms(current.residuals)
+        step = {"given": [s.effect.name for s in selected],
+                "candidates": [dict(_entry(s), shrink=_shrink(rms_now, _rms(s.fit.residuals), floor))
+                               for s in scores]}
+        steps.append(step)
+        chosen = None
+        for s, entry in zip(scores, step["candidates"]):
+            entry["sign_p"] = sign_test(s.diff)
+            entry["z_loss"] = loss_scaled_z(s.diff)
+            if not s.at_bound and s.score >= MIN_SCORE and (
+                    s.score >= Z_SELECT * s.score_se or entry["sign_p"] <= SIGN_P or entry["z_loss"] >= Z_LOSS):
+                chosen = s
+                break
+        if chosen is None:
+            break
+        say(f"selected {chosen.effect.name} (score {chosen.score:.1f} +- {chosen.score_se:.1f})")
+        selected.append(chosen)
+        # the new current model, alpha profiled afresh over the whole range
+        current = fit_base(scorer, list(current.terms) + [(chosen.effect, chosen.setting)])
+        # refresh the selected effect's entry in the ranking with its parameters in context
+        remaining = [e for e in remaining if e.name != chosen.effect.name]
+        if not remaining:
+            break
+
+    final = current
+    rms_after = _rms(final.residuals)
+    top = next((w for w in where if not w.get("band") and w["share"] > 0), None)
+    region = {}
+    if top is not None:
+        mask = _top_region_mask(tests, top["region"])
+        if mask is not None:
+            region = {"region": top["region"], "rms_before": _rms(base.residuals, mask),
+                      "rms_after": _rms(final.residuals, mask)}
+    base_values = base.base()
+    final_values = final.base()
+    base_shift = {k: float((final_values[k] - base_values[k]) / base_values[k]) for k in base_values}
+    selected_names = [s.effect.name for s in selected]
+    shrink = _shrink(rms_before, rms_after, floor) if selected else 0.0
+
+    t0 = time.perf_counter()
+    oil = oil_column_check(series)
+    timings["oil_column"] = time.perf_counter() - t0
+    if oil is not None:
+        ranking.append({k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor")})
+        ranking[-1]["test_elpd_diff"] = []
+        ranking.sort(key=lambda r: -r["score"])
+        oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
+        if oil["score"] >= MIN_SCORE and oil["z"] is not None and oil["z"] >= Z_SELECT:
+            say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f})")
+            selected_names.append("oil_column")
+            oil["selected"] = True
+            if not selected:
+                # the oil column is the only finding: report its own (frequency-response) misfit
+                floor, rms_before, rms_after, shrink = (oil["noise_floor"], oil["rms_before"],
+                                                        oil["rms_after"], oil["shrink"])
+    timings["total"] = time.perf_counter() - started
+    return Diagnosis(
+        series_name=series.name,
+        selected=selected_names,
+        ranking=ranking,
+        where=where,
+        noise_floor=floor,
+        rms_before=rms_before,
+        rms_after=rms_after,
+        shrink=shrink,
+        base_shift=base_shift,
+        base=dict(base_values, spread=base.spread),
+        final=dict(final_values, spread=final.spread),
+        region=region,
+        steps=steps,
+        oil=oil,
+        timings=timings,
+        settings={"z_select": Z_SELECT, "min_score": MIN_SCORE, "sign_p": SIGN_P, "improved_nats": IMPROVED_NATS, "z_loss": Z_LOSS,
+                  "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,
+                  "tests": [t.id for t in tests]},
+        figures={"tests": tests, "base": base, "final": final, "floors": floors},
+    )

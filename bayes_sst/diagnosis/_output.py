@@ -1,0 +1,136 @@
+"""diagnosis.json, diagnosis.txt and a small self-contained HTML page with embedded PNG figures."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+from pathlib import Path
+
+import numpy as np
+
+DIAGNOSIS_JSON = "diagnosis.json"
+DIAGNOSIS_TEXT = "diagnosis.txt"
+DIAGNOSIS_HTML = "diagnosis.html"
+NEGLIGIBLE_EXCESS = 0.05
+
+
+def format_diagnosis(data: dict) -> str:
+    """A short human-readable account: verdict, where, ranking (kN in the text, SI in the json)."""
+    lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
+             f"noise floor {data['noise_floor'] / 1e3:.3f} kN, residual RMS before {data['rms_before'] / 1e3:.3f} kN, "
+             f"after {data['rms_after'] / 1e3:.3f} kN, shrink {100 * data['shrink']:.0f} % of the excess",
+             "", "where the base model misses (share of the excess over the noise floor):"]
+    excess = data["rms_before"] ** 2 - data["noise_floor"] ** 2
+    if excess < NEGLIGIBLE_EXCESS * data["noise_floor"] ** 2:
+        lines.append(f"  nowhere: the residual is within {100 * NEGLIGIBLE_EXCESS:.0f} % (mean square) of the noise "
+                     "floor, so the shares below are of a negligible excess")
+    for w in data["where"][:6]:
+        extra = f", {100 * w['sample_share']:.0f} % of the samples" if w.get("sample_share") is not None else ""
+        lines.append(f"  {100 * w['share']:6.0f} %  {w['region']}{extra}  "
+                     f"(mean square {100 * w['excess_ratio']:+.0f} % over its floor)")
+    lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
+    for r in data["ranking"]:
+        params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
+        mark = "*" if r["name"] in data["selected"] else " "
+        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}")
+    if data["selected"]:
+        lines += ["", "base parameters moved by the selected effect(s): "
+                  + ", ".join(f"{k} {100 * v:+.1f} %" for k, v in data["base_shift"].items())]
+    return "\n".join(lines)
+
+
+def _png(fig) -> str:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def figures(diagnosis) -> list[tuple[str, str]]:
+    """(caption, base64 PNG) pairs: ranking bar chart, residual against cycle phase, where shares."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    data = diagnosis.to_json()
+    out = []
+    fig, ax = plt.subplots(figsize=(6, 3))
+    names = [r["name"] for r in data["ranking"]]
+    scores = [r["score"] for r in data["ranking"]]
+    ses = [r["score_se"] for r in data["ranking"]]
+    ax.barh(names, scores, xerr=ses, color=["C3" if n in data["selected"] else "C0" for n in names])
+    ax.axvline(0, color="k", lw=0.8)
+    ax.set_xlabel("elpd difference against the base model (nats)")
+    ax.invert_yaxis()
+    out.append(("Candidate effects ranked (selected in red; bars: +- 1 standard error)", _png(fig)))
+    plt.close(fig)
+
+    figs = diagnosis.figures
+    if figs:
+        fig, ax = plt.subplots(figsize=(6, 3))
+        for t, rb, ra in zip(figs["tests"], figs["base"].residuals, figs["final"].residuals):
+            phase = (t.kept / t.period_samples) % 1.0
+            ax.plot(phase, rb / 1e3, ".", color="C0", ms=2, alpha=0.5)
+            if data["selected"]:
+                ax.plot(phase, ra / 1e3, ".", color="C3", ms=2, alpha=0.5)
+        ax.set_xlabel("cycle phase")
+        ax.set_ylabel("residual (kN)")
+        out.append(("Residual force against cycle phase: base model (blue)"
+                    + (", with the selected effect(s) (red)" if data["selected"] else ""), _png(fig)))
+        plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 3))
+    where = data["where"][:8]
+    ax.barh([w["region"] for w in where], [100 * w["share"] for w in where], color="C2")
+    ax.set_xlabel("share of the excess over the noise floor (%)")
+    ax.invert_yaxis()
+    out.append(("Where the base model misses", _png(fig)))
+    plt.close(fig)
+    return out
+
+
+def write_html(path: Path, diagnosis) -> None:
+    data = diagnosis.to_json()
+    parts = ["<!doctype html><html><head><meta charset='utf-8'><title>bayes-sst diagnosis</title>",
+             "<style>body{font-family:sans-serif;max-width:900px;margin:auto} pre{background:#f4f4f4;padding:8px}"
+             "table{border-collapse:collapse} td,th{border:1px solid #ccc;padding:3px 6px}</style></head><body>",
+             f"<h1>Diagnosis: {html.escape(data['series'])}</h1>",
+             f"<p><b>{html.escape(data['verdict'])}</b></p>",
+             "<pre>" + html.escape(format_diagnosis(data)) + "</pre>",
+             "<h2>Ranking</h2><table><tr><th>effect</th><th>equation</th><th>score (nats)</th><th>se</th>"
+             "<th>parameters (SI)</th></tr>"]
+    for r in data["ranking"]:
+        params = "; ".join(f"{k} = {v['mean']:.4g} &plusmn; {v['sd']:.2g}" for k, v in r["params"].items())
+        parts.append(f"<tr><td>{html.escape(r['name'])}</td><td>{html.escape(r['equation'])}</td>"
+                     f"<td>{r['score']:.1f}</td><td>{r['score_se']:.1f}</td><td>{params}</td></tr>")
+    parts.append("</table>")
+    for caption, png in figures(diagnosis):
+        parts.append(f"<figure><img src='data:image/png;base64,{png}'><figcaption>{html.escape(caption)}"
+                     "</figcaption></figure>")
+    parts.append("</body></html>")
+    path.write_text("\n".join(parts))
+
+
+def write_diagnosis(out_dir, diagnosis, *, overwrite: bool = False) -> None:
+    """Write diagnosis.json, diagnosis.txt and diagnosis.html into a new folder, atomically."""
+    from bayes_sst.io import atomic_output_dir, write_json_atomic
+
+    data = diagnosis.to_json()
+    with atomic_output_dir(out_dir, overwrite=overwrite) as tmp:
+        write_json_atomic(Path(tmp) / DIAGNOSIS_JSON, _plain(data))
+        (Path(tmp) / DIAGNOSIS_TEXT).write_text(format_diagnosis(data) + "\n")
+        write_html(Path(tmp) / DIAGNOSIS_HTML, diagnosis)
+
+
+def _plain(x):
+    """numpy scalars and arrays to plain json types."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, np.generic):
+        return x.item()
+    return x

@@ -1,0 +1,375 @@
+"""The candidate effects: what the base force model F = Me*a + Ke*u + (Ce*|v|^alpha + Fmu)*sign(v)
+leaves out, each as a small object.
+
+Every force-term effect adds k regressor columns that enter linearly for fixed values of its
+nonlinear ("grid") parameters; channel_delay instead re-reads the force channel at a shifted
+time. An effect is pure: it turns an EffectData into columns, and fitted coefficients into
+physical parameters, and never reads files, plots or samples.
+
+Priors: a linear coefficient c_k ~ N(0, prior_sd_k^2) with prior_sd_k set from the base fit's
+scale (stated per effect); a grid parameter is uniform over its grid (log-spaced grids:
+log-uniform). The grids bound what can be found (documented in docs/diagnosis.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+from scipy import signal as _sp_signal
+
+from bayes_sst.effects._data import EffectData
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A reported effect parameter: name, SI unit, and its prior in words."""
+
+    name: str
+    unit: str
+    prior: str
+
+
+@dataclass(frozen=True)
+class Effect:
+    """Base of the effect library (abstract: use the concrete effects below).
+
+    name : the effect's key ('stiction', ...); physics : one line; equation : the added term;
+    parameters : the reported parameters with their priors; grid : nonlinear parameters and
+    the values profiled over (empty for none); coefficients : names of the linear coefficients.
+    """
+
+    name: str = ""
+    physics: str = ""
+    equation: str = ""
+    parameters: tuple[Parameter, ...] = ()
+    grid: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
+    coefficients: tuple[str, ...] = ()
+    positive: tuple[str, ...] = ()
+
+    def settings(self) -> list[dict[str, float]]:
+        """Every combination of grid values ([{}] when the effect has no grid parameter)."""
+        out = [{}]
+        for key, values in self.grid.items():
+            out = [dict(s, **{key: float(v)}) for s in out for v in values]
+        return out
+
+    def columns(self, test: EffectData, setting: Mapping[str, float], alpha: float,
+                base: Mapping[str, float] | None = None) -> np.ndarray:
+        """(k, n_kept) regressors added to the base design; (0, n) for a response-only effect.
+        base: the base fit's population values (Me, Ke, Ce, Fmu), for effects scaled by them."""
+        return np.zeros((0, len(test.index)))
+
+    def response(self, test: EffectData, setting: Mapping[str, float]) -> np.ndarray | None:
+        """The force to explain instead of the recorded one, or None to keep it."""
+        return None
+
+    def prior_sd(self, base: Mapping[str, float]) -> np.ndarray:
+        """Prior sd of each linear coefficient, SI, from the base fit's population values."""
+        return np.zeros(0)
+
+    def report(self, coef: np.ndarray, coef_sd: np.ndarray, setting: Mapping[str, float],
+               base: Mapping[str, float]) -> dict[str, dict[str, float]]:
+        """Physical parameters {name: {'mean', 'sd'}} from the fitted coefficients and grid values."""
+        return {}
+
+
+def _value(mean: float, sd: float) -> dict[str, float]:
+    return {"mean": float(mean), "sd": float(sd)}
+
+
+@dataclass(frozen=True)
+class Stiction(Effect):
+    """Static friction above kinetic friction at the start of motion (Stribeck curve):
+
+        F_st = (Fs - Fk)*exp(-(|v|/v_s)^2)*sign(v),   static_ratio = Fs/Fk = 1 + (Fs - Fk)/Fmu.
+
+    The regressor filter(exp(-(|v|/v_s)^2) sign v) needs the samples near velocity reversals,
+    which the diagnosis keeps. Prior: Fs - Fk ~ N(0, Fmu^2); v_s log-uniform on its grid.
+    """
+
+    name: str = "stiction"
+    physics: str = "static friction above kinetic friction at each start and reversal (Stribeck curve)"
+    equation: str = "(Fs - Fk)*exp(-(|v|/v_s)^2)*sign(v)"
+    parameters: tuple[Parameter, ...] = (
+        Parameter("static_ratio", "-", "1 + N(0, 1)"),
+        Parameter("stribeck_velocity", "m/s", "log-uniform 0.5-40 mm/s"),
+    )
+    grid: Mapping[str, tuple[float, ...]] = field(
+        default_factory=lambda: {"stribeck_velocity": tuple(np.geomspace(0.0005, 0.04, 13))})
+    coefficients: tuple[str, ...] = ("Fs_minus_Fk",)
+    positive: tuple[str, ...] = ("Fs_minus_Fk",)
+
+    def columns(self, test, setting, alpha, base=None):
+        vs = setting["stribeck_velocity"]
+        v = test.v_full
+        return test.filtered(np.exp(-(v / vs) ** 2) * np.sign(v))[None]
+
+    def prior_sd(self, base):
+        return np.array([abs(base["Fmu"])])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"static_ratio": _value(1.0 + coef[0] / base["Fmu"], coef_sd[0] / abs(base["Fmu"])),
+                "stribeck_velocity": _value(setting["stribeck_velocity"], 0.0)}
+
+
+@dataclass(frozen=True)
+class NonlinearStiffness(Effect):
+    """Cubic strut stiffness of the gas struts (large-stroke term the study drops):
+
+        F_k3 = K'e*(u/h)^2*u,   h the strut height; the gas strut gives K'e = 0.5*(gamma*h/l0 - 1)*Ke.
+
+    Prior: K'e ~ N(0, Ke^2).
+    """
+
+    name: str = "nonlinear_stiffness"
+    physics: str = "cubic strut stiffness at large stroke"
+    equation: str = "K'e*(u/h)^2*u"
+    parameters: tuple[Parameter, ...] = (Parameter("cubic_stiffness", "N/m", "N(0, Ke^2)"),)
+    coefficients: tuple[str, ...] = ("cubic_stiffness",)
+
+    def columns(self, test, setting, alpha, base=None):
+        u = test.u_full
+        return test.filtered(u**3 / test.strut_h**2)[None]
+
+    def prior_sd(self, base):
+        return np.array([abs(base["Ke"])])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"cubic_stiffness": _value(coef[0], coef_sd[0])}
+
+
+@dataclass(frozen=True)
+class PositionFriction(Effect):
+    """Hinge friction growing with displacement:
+
+        F_p = Fp*(u/h)^2*sign(v).
+
+    Prior: Fp ~ N(0, (Fmu*(h/stroke)^2)^2), i.e. up to about Fmu at full stroke.
+    """
+
+    name: str = "position_friction"
+    physics: str = "hinge friction growing with the square of the displacement"
+    equation: str = "Fp*(u/h)^2*sign(v)"
+    parameters: tuple[Parameter, ...] = (Parameter("position_friction", "N", "N(0, (Fmu*(h/u_max)^2)^2)"),)
+    coefficients: tuple[str, ...] = ("position_friction",)
+    positive: tuple[str, ...] = ("position_friction",)
+
+    def columns(self, test, setting, alpha, base=None):
+        return test.filtered((test.u_full / test.strut_h) ** 2 * np.sign(test.v_full))[None]
+
+    def prior_sd(self, base):
+        return np.array([abs(base["Fmu"]) * (base.get("strut_h", 1.0) / base.get("stroke", 0.1)) ** 2])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"position_friction": _value(coef[0], coef_sd[0])}
+
+
+def sdof_base_shear(a: np.ndarray, frequency_hz: float, damping: float, sample_rate_hz: float) -> np.ndarray:
+    """Base shear per unit specimen mass, a + x'', of a specimen x'' + 2*z*w*x' + w^2*x = -a:
+
+        S(s)/A(s) = (2*z*w*s + w^2)/(s^2 + 2*z*w*s + w^2),
+
+    discretised by the bilinear transform with the natural frequency pre-warped, started at rest.
+    """
+    # pre-warp, so that the discrete filter's natural frequency is exactly f_s
+    w = 2.0 * sample_rate_hz * math.tan(math.pi * frequency_hz / sample_rate_hz)
+    z, p, k = _sp_signal.bilinear_zpk(*_sp_signal.tf2zpk([2.0 * damping * w, w * w], [1.0, 2.0 * damping * w, w * w]),
+                                      fs=sample_rate_hz)
+    sos = _sp_signal.zpk2sos(z, p, k)
+    return _sp_signal.sosfilt(sos, a)
+
+
+@dataclass(frozen=True)
+class Specimen(Effect):
+    """A flexible specimen (mass m_s, natural frequency f_s, damping ratio zeta_s) on the deck:
+
+        F_s = m_s*(a + x''),   x'' + 2*zeta_s*w_s*x' + w_s^2*x = -a,   w_s = 2*pi*f_s,
+
+    its base shear. The column is the shear per unit mass driven by the recorded acceleration;
+    its rigid part m_s*a moves into the coefficient m_s, so Me drops by m_s when it is added.
+    Prior: m_s ~ N(0, Me^2); f_s log-uniform 2-25 Hz, zeta_s on {2, 5} %.
+    """
+
+    name: str = "specimen"
+    physics: str = "a flexible specimen whose base shear loads the deck"
+    equation: str = "m_s*(a + x''),  x'' + 2*zeta_s*w_s*x' + w_s^2*x = -a"
+    parameters: tuple[Parameter, ...] = (
+        Parameter("specimen_mass", "kg", "N(0, Me^2)"),
+        Parameter("specimen_frequency", "Hz", "log-uniform 2-25 Hz"),
+        Parameter("specimen_damping", "-", "uniform on {0.02, 0.05}"),
+    )
+    grid: Mapping[str, tuple[float, ...]] = field(default_factory=lambda: {
+        "specimen_frequency": tuple(np.round(np.geomspace(2.0, 25.0, 23), 3)),
+        "specimen_damping": (0.02, 0.05),
+    })
+    coefficients: tuple[str, ...] = ("specimen_mass",)
+    positive: tuple[str, ...] = ("specimen_mass",)
+
+    def columns(self, test, setting, alpha, base=None):
+        # from the record's start, where the table rests, so no start-up transient enters
+        shear = sdof_base_shear(test.a_record, setting["specimen_frequency"], setting["specimen_damping"],
+                                test.sample_rate_hz)[test.lo:]
+        return test.filtered(shear)[None]
+
+    def prior_sd(self, base):
+        return np.array([abs(base["Me"])])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"specimen_mass": _value(coef[0], coef_sd[0]),
+                "specimen_frequency": _value(setting["specimen_frequency"], 0.0),
+                "specimen_damping": _value(setting["specimen_damping"], 0.0)}
+
+
+@dataclass(frozen=True)
+class ChannelDelay(Effect):
+    """The force channel recorded with a lag d behind the motion channels:
+
+        F_recorded(t) = F(t - d),   so the model is fitted to F_recorded(t + d).
+
+    No linear coefficient; d uniform on 0-12 ms in 0.25 ms steps (negative d, a force that
+    leads the motion, is on the grid too, down to -2 ms, so that d = 0 is not a boundary).
+    """
+
+    name: str = "channel_delay"
+    physics: str = "force channel recorded with a time lag relative to the motion channels"
+    equation: str = "F_recorded(t) = F(t - d)"
+    parameters: tuple[Parameter, ...] = (Parameter("delay", "s", "uniform -2 to 12 ms"),)
+    grid: Mapping[str, tuple[float, ...]] = field(
+        default_factory=lambda: {"delay": tuple(np.round(np.arange(-0.002, 0.01201, 0.00025), 6))})
+
+    def response(self, test, setting):
+        return test.force_at(setting["delay"])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"delay": _value(setting["delay"], 0.0)}
+
+
+@dataclass(frozen=True)
+class Drift(Effect):
+    """Friction and damping falling together over the campaign (oil warming, bearings running in):
+
+        Fmu_j = Fmu*(1 - d*s_j),   Ce_j = Ce*(1 - d*s_j),   s_j in [0, 1] the campaign position,
+
+    i.e. the column -s_j*(Fmu*filter(sign v) + Ce*filter(|v|^alpha sign v)) with Fmu, Ce the
+    base fit's values and the coefficient d. One common rate, because within a test friction
+    and damping are nearly collinear: two separate rates were tried and traded off against each
+    other (0.15 and 0.15 came back as 0.23 and 0.08). Prior: d ~ N(0, 0.5^2).
+    """
+
+    name: str = "drift"
+    physics: str = "friction and damping falling over the campaign order (oil warming)"
+    equation: str = "-d*s*(Fmu + Ce*|v|^alpha)*sign(v)"
+    parameters: tuple[Parameter, ...] = (Parameter("drift", "-", "N(0, 0.5^2)"),)
+    coefficients: tuple[str, ...] = ("drift",)
+
+    def columns(self, test, setting, alpha, base=None):
+        if base is None:
+            raise ValueError("the drift effect needs the base fit's Fmu and Ce")
+        return -test.position * (base["Fmu"] * test.sign() + base["Ce"] * test.damping(alpha))[None]
+
+    def prior_sd(self, base):
+        return np.array([0.5])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"drift": _value(coef[0], coef_sd[0])}
+
+
+@dataclass(frozen=True)
+class StrutInertia(Effect):
+    """Inertia of the inclined struts, growing with the stroke (the study's strut mass term):
+
+        F_si = M'*(u/h)^2*a,
+
+    the struts' effective mass rising with their inclination. Prior: M' ~ N(0, Me^2).
+    """
+
+    name: str = "strut_inertia"
+    physics: str = "strut inertia growing with the struts' inclination"
+    equation: str = "M'*(u/h)^2*a"
+    parameters: tuple[Parameter, ...] = (Parameter("strut_inertia", "kg", "N(0, Me^2)"),)
+    coefficients: tuple[str, ...] = ("strut_inertia",)
+    positive: tuple[str, ...] = ("strut_inertia",)
+
+    def columns(self, test, setting, alpha, base=None):
+        return test.filtered((test.u_full / test.strut_h) ** 2 * test.a_raw)[None]
+
+    def prior_sd(self, base):
+        return np.array([abs(base["Me"])])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"strut_inertia": _value(coef[0], coef_sd[0])}
+
+
+@dataclass(frozen=True)
+class StrutDamping(Effect):
+    """Viscous damping in the struts' hinges and gas (the study's strut damping term):
+
+        F_sd = Cs*v,
+
+    linear in the velocity, beside the power-law Ce*|v|^alpha. Prior: Cs ~ N(0, (Ce/0.1)^2) N*s/m.
+    """
+
+    name: str = "strut_damping"
+    physics: str = "linear viscous damping of the struts"
+    equation: str = "Cs*v"
+    parameters: tuple[Parameter, ...] = (Parameter("strut_damping", "N*s/m", "N(0, (10*Ce)^2)"),)
+    coefficients: tuple[str, ...] = ("strut_damping",)
+    positive: tuple[str, ...] = ("strut_damping",)
+
+    def columns(self, test, setting, alpha, base=None):
+        return test.filtered(test.v_full)[None]
+
+    def prior_sd(self, base):
+        return np.array([10.0 * abs(base["Ce"])])
+
+    def report(self, coef, coef_sd, setting, base):
+        return {"strut_damping": _value(coef[0], coef_sd[0])}
+
+
+FORCE_EFFECTS: tuple[Effect, ...] = (
+    Stiction(), NonlinearStiffness(), PositionFriction(), Specimen(), ChannelDelay(), Drift(),
+    StrutInertia(), StrutDamping(),
+)
+
+
+@dataclass(frozen=True)
+class OilColumn(Effect):
+    """Oil-column compliance in the actuators: a resonance between command and deck motion,
+
+        H(f) = a(f)/a_cmd(f) = g*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f),
+
+    against the base model's rigid, flat response H = g. Seen in broadband tests (the H1
+    frequency response of bayes_sst.oil). Prior: f_o log-uniform 5-80 Hz, zeta_o 0.02-0.8, g > 0.
+    """
+
+    name: str = "oil_column"
+    physics: str = "oil-column compliance: a resonance between command and deck motion"
+    equation: str = "H(f) = g*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f)"
+    parameters: tuple[Parameter, ...] = (
+        Parameter("oil_frequency", "Hz", "log-uniform 5-80 Hz"),
+        Parameter("oil_damping", "-", "log-uniform 0.02-0.8"),
+    )
+    grid: Mapping[str, tuple[float, ...]] = field(default_factory=lambda: {
+        "oil_frequency": tuple(np.round(np.geomspace(5.0, 80.0, 121), 4)),
+        "oil_damping": tuple(np.round(np.geomspace(0.02, 0.8, 25), 5)),
+    })
+
+    @staticmethod
+    def frf(frequency_hz: np.ndarray, oil_frequency: float, oil_damping: float) -> np.ndarray:
+        """The resonance's shape f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f) (gain 1)."""
+        f = np.asarray(frequency_hz, dtype=float)
+        return oil_frequency**2 / (oil_frequency**2 - f * f + 2j * oil_damping * oil_frequency * f)
+
+
+EFFECTS: tuple[Effect, ...] = FORCE_EFFECTS + (OilColumn(),)
+
+
+def effect_by_name(name: str) -> Effect:
+    """The library's effect of that name; ValueError naming the known ones otherwise."""
+    for effect in EFFECTS:
+        if effect.name == name:
+            return effect
+    raise ValueError(f"unknown effect {name!r}; known: {[e.name for e in EFFECTS]}")

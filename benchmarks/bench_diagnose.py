@@ -1,0 +1,83 @@
+"""Benchmark of `bayes-sst diagnose`: wall time on the 20-test reference campaign, and the
+withheld-effect study (is the withheld effect ranked first and selected, how much of the excess
+does it remove, how close are its parameters), plus clean series that must give `selected == []`.
+
+    .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--out results.json]
+
+Prints one line per series; --quick runs only the timing and two cases.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from bayes_sst.diagnosis import diagnose
+from bayes_sst.physics import strut_cubic_stiffness
+from bayes_sst.twin import PRESETS, simulate
+
+TRUTH = PRESETS["sst-paper"]
+K3 = strut_cubic_stiffness(TRUTH.Ke, TRUTH.strut_gamma, TRUTH.strut_h, TRUTH.strut_l0)
+
+CASES = [
+    # label, expected effect (None: clean), overrides, {reported parameter: truth}
+    ("clean-31", None, {}, {}),
+    ("clean-32", None, {}, {}),
+    ("clean-33", None, {}, {}),
+    ("delay-3ms", "channel_delay", {"force_delay": 0.003}, {"delay": 0.003}),
+    ("delay-1ms (weak)", "channel_delay", {"force_delay": 0.001}, {"delay": 0.001}),
+    ("specimen-3t-8Hz", "specimen", {"specimen_mass": 3000.0, "specimen_frequency": 8.0},
+     {"specimen_mass": 3000.0, "specimen_frequency": 8.0}),
+    ("specimen-5t-12Hz", "specimen", {"specimen_mass": 5000.0, "specimen_frequency": 12.0, "specimen_damping": 0.05},
+     {"specimen_mass": 5000.0, "specimen_frequency": 12.0}),
+    ("drift-15%", "drift", {"friction_drift": 0.15, "damping_drift": 0.15}, {"drift": 0.15}),
+    ("drift-5% (weak)", "drift", {"friction_drift": 0.05, "damping_drift": 0.05}, {"drift": 0.05}),
+    ("cubic-gas-strut (weak)", "nonlinear_stiffness", {"cubic_stiffness": K3}, {"cubic_stiffness": K3}),
+    ("cubic-3x", "nonlinear_stiffness", {"cubic_stiffness": 3 * K3}, {"cubic_stiffness": 3 * K3}),
+    ("hinge-friction-5e4", "position_friction", {"position_friction": 5e4}, {"position_friction": 5e4}),
+    ("stiction-1.3", "stiction", {"static_ratio": 1.3}, {"static_ratio": 1.3}),
+]
+
+
+def run_case(label, expected, overrides, params, seed):
+    series = simulate("sst-paper", seed=seed, spread=0.02, truth_overrides=overrides)
+    started = time.perf_counter()
+    d = diagnose(series)
+    seconds = time.perf_counter() - started
+    top = d.ranking[0]
+    recovered = {k: top["params"].get(k, {}).get("mean") for k in params} if top["name"] == expected else {}
+    errors = {k: (recovered[k] / v - 1.0) if recovered.get(k) is not None else None for k, v in params.items()}
+    row = {"label": label, "expected": expected, "selected": d.selected, "top": top["name"],
+           "score": top["score"], "score_se": top["score_se"], "shrink": d.shrink, "rms_before": d.rms_before,
+           "rms_after": d.rms_after, "noise_floor": d.noise_floor, "relative_errors": errors, "seconds": seconds,
+           "ok": (d.selected == [] if expected is None else
+                  (bool(d.selected) and d.selected[0] == expected and d.shrink >= 0.7
+                   and all(e is not None and abs(e) <= 0.2 for e in errors.values())))}
+    print(f"{label:24s} selected={d.selected!s:32s} top={top['name']:20s} score={top['score']:8.1f}+-{top['score_se']:6.1f} "
+          f"shrink={d.shrink:5.2f} rms {d.rms_before:6.0f}->{d.rms_after:6.0f} floor {d.noise_floor:5.0f} "
+          f"err={ {k: (round(e, 3) if e is not None else None) for k, e in errors.items()} } {seconds:5.1f} s "
+          f"{'OK' if row['ok'] else 'MISS'}", flush=True)
+    return row
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--seed", type=int, default=21)
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    cases = CASES[:1] + CASES[3:4] if args.quick else CASES
+    rows = []
+    for label, expected, overrides, params in cases:
+        seed = int(label.split("-")[1]) if label.startswith("clean-") else args.seed
+        rows.append(run_case(label, expected, overrides, params, seed))
+    print(f"{sum(r['ok'] for r in rows)}/{len(rows)} as expected; slowest diagnosis "
+          f"{max(r['seconds'] for r in rows):.1f} s")
+    if args.out:
+        with open(args.out, "w") as fh:
+            json.dump(rows, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()

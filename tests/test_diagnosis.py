@@ -1,0 +1,145 @@
+"""The sim-to-real diagnosis against known truth: noise floor, clean series, a withheld effect, the command.
+
+Default tests use a 10-test campaign so that they stay short; the withheld-effect study over
+the whole library on the 20-test reference campaign is marked slow.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bayes_sst.cli import main
+from bayes_sst.diagnosis import diagnose, effect_data, noise_floor
+from bayes_sst.io import write_series
+from bayes_sst.twin import PRESETS, default_plan, simulate
+from bayes_sst.physics import strut_cubic_stiffness
+
+TRUTH = PRESETS["sst-paper"]
+SHORT_PLAN = [p for i, p in enumerate(default_plan()) if i % 2 == 0]   # 10 tests over 0.25-3 Hz
+
+
+def test_noise_floor_of_a_periodic_signal_is_the_noise_sd():
+    # a periodic "residual" (model error, repeats every cycle) plus white noise of sd 50 N:
+    # the floor must see only the noise.
+    from bayes_sst.effects import EffectData
+
+    rate, f = 200.0, 1.0
+    n = int(10 * rate)
+    t = np.arange(n) / rate
+    rng = np.random.default_rng(0)
+    periodic = 400.0 * np.sin(2 * np.pi * f * t) ** 3
+    residual = periodic + 50.0 * rng.standard_normal(n)
+    zeros = np.zeros(n)
+    test = EffectData(id="X", frequency_hz=f, amplitude_m=0.01, payload_kg=0.0, position=0.0, strut_h=1.0,
+                      sample_rate_hz=rate, cutoff_hz=4.0, lo=0, index=np.arange(100, n - 100, 12),
+                      u_full=zeros, v_full=zeros, a_full=zeros, F_full=zeros, a_record=zeros,
+                      period_samples=rate / f)
+    assert noise_floor(test, residual) == pytest.approx(50.0, rel=0.1)
+
+
+@pytest.fixture(scope="module")
+def clean_diagnosis():
+    series = simulate("sst-paper", seed=11, spread=0.02, plan=SHORT_PLAN)
+    return diagnose(series)
+
+
+def test_clean_series_selects_nothing(clean_diagnosis):
+    d = clean_diagnosis
+    assert d.selected == []
+    assert d.verdict.startswith("verdict: none")
+    # residual close to the model-free noise floor: the base model misses nothing
+    assert d.rms_before < 1.15 * d.noise_floor
+    assert {r["name"] for r in d.ranking} >= {"stiction", "specimen", "channel_delay", "drift"}
+    base = d.base
+    assert base["Me"] == pytest.approx(TRUTH.Me, rel=0.03)
+    assert base["Ke"] == pytest.approx(TRUTH.Ke, rel=0.03)
+
+
+def test_effect_data_keeps_reversals(clean_diagnosis):
+    series = simulate("sst-paper", seed=11, spread=0.02, plan=SHORT_PLAN[:2], noise="quiet")
+    tests = effect_data(series)
+    v = tests[0].v
+    # no reversal band: samples slower than 20 % of the peak speed are kept
+    assert np.mean(np.abs(v) < 0.2 * np.max(np.abs(v))) > 0.05
+
+
+def test_diagnose_command_finds_a_withheld_channel_delay(tmp_path, capsys):
+    series = simulate("sst-paper", seed=12, spread=0.02, plan=SHORT_PLAN, truth_overrides={"force_delay": 0.003})
+    write_series(series, tmp_path / "series")
+    out = tmp_path / "diag"
+    assert main(["diagnose", str(tmp_path / "series"), "--out", str(out)]) == 0
+    assert "channel_delay" in capsys.readouterr().out
+    data = json.loads((out / "diagnosis.json").read_text())
+    assert (out / "diagnosis.html").read_text().startswith("<!doctype html>")
+    assert set(data) >= {"selected", "ranking", "where", "noise_floor", "rms_before", "rms_after", "shrink",
+                         "base_shift"}
+    assert data["selected"][0] == "channel_delay"
+    assert data["ranking"][0]["name"] == "channel_delay"
+    assert data["ranking"][0]["params"]["delay"]["mean"] == pytest.approx(0.003, rel=0.2)
+    assert data["shrink"] >= 0.7
+    assert data["rms_after"] < data["rms_before"]
+    assert all({"name", "score", "score_se", "params"} <= set(r) for r in data["ranking"])
+    assert all({"region", "share"} <= set(w) for w in data["where"])
+    # a taken folder is refused with exit code 2
+    assert main(["diagnose", str(tmp_path / "series"), "--out", str(out)]) == 2
+
+
+# --- withheld-effect study (slow): one effect switched on, the 20-test reference campaign --------
+
+K3 = strut_cubic_stiffness(TRUTH.Ke, TRUTH.strut_gamma, TRUTH.strut_h, TRUTH.strut_l0)
+# Known gaps (docs/diagnosis.md): measured misses, kept as non-strict xfails so that a fix shows.
+NOT_FOUND = pytest.mark.xfail(strict=False, reason="not found on the twin: its clean base misfit at the "
+                              "reversals projects onto this effect's column (docs/diagnosis.md, gaps)")
+STICTION = pytest.mark.xfail(strict=False, reason="the breakaway jolt is a few samples long; after the "
+                             "4f low-pass it is 50-120 N against a ~300 N floor (docs/diagnosis.md, gaps)")
+WITHHELD = [
+    # name, overrides, {reported parameter: true value}, shrink asserted
+    pytest.param("channel_delay", {"force_delay": 0.003}, {"delay": 0.003}, True, id="delay-3ms"),
+    pytest.param("channel_delay", {"force_delay": 0.001}, {"delay": 0.001}, True, id="delay-1ms-weak"),
+    pytest.param("specimen", {"specimen_mass": 3000.0, "specimen_frequency": 8.0},
+                 {"specimen_mass": 3000.0, "specimen_frequency": 8.0}, True, id="specimen-3t-8Hz"),
+    pytest.param("specimen", {"specimen_mass": 5000.0, "specimen_frequency": 12.0, "specimen_damping": 0.05},
+                 {"specimen_mass": 5000.0, "specimen_frequency": 12.0}, True, id="specimen-5t-12Hz"),
+    # drift acts between tests: the per-test coefficients absorb it in-sample, so its in-sample
+    # shrink is ~0 by construction; its predictive gain is the score (docs/diagnosis.md, gaps)
+    pytest.param("drift", {"friction_drift": 0.15, "damping_drift": 0.15}, {"drift": 0.15}, False, id="drift-15%"),
+    pytest.param("nonlinear_stiffness", {"cubic_stiffness": 3 * K3}, {"cubic_stiffness": 3 * K3}, True,
+                 id="cubic-3x", marks=NOT_FOUND),
+    pytest.param("position_friction", {"position_friction": 1.5e5}, {"position_friction": 1.5e5}, True,
+                 id="hinge-1.5e5", marks=NOT_FOUND),
+    pytest.param("stiction", {"static_ratio": 1.5}, {"static_ratio": 1.5}, True, id="stiction-1.5",
+                 marks=STICTION),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, overrides, params, check_shrink", WITHHELD)
+def test_withheld_effect_is_found_and_recovered(name, overrides, params, check_shrink):
+    series = simulate("sst-paper", seed=21, spread=0.02, truth_overrides=overrides)
+    d = diagnose(series)
+    assert d.ranking[0]["name"] == name
+    assert d.selected == [name]
+    if check_shrink:
+        assert d.shrink >= 0.7
+    for key, true in params.items():
+        assert d.ranking[0]["params"][key]["mean"] == pytest.approx(true, rel=0.2)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [31, 32, 33])
+def test_clean_reference_campaigns_select_nothing(seed):
+    assert diagnose(simulate("sst-paper", seed=seed, spread=0.02)).selected == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_clean_randomised_tables_select_nothing(seed):
+    # independent-lab-like tables (random_series): +-25 % parameters, alpha 0.35-0.9, spread 2-4 %,
+    # noise x0.5-2, and a static-to-kinetic ratio up to 1.15 that the twin always had
+    from bayes_sst.twin import random_series
+
+    assert diagnose(random_series(seed)).selected == []
