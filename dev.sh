@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-step set-up and run for bayes_sst.
-#   ./dev.sh example   install, then fit the example series in data/sst-paper and print the posterior
+#   ./dev.sh example   install, then fit the example series in data/sst-paper, print the posterior
+#                      and write its posterior-predictive check report to reports/sst-paper
 #   ./dev.sh test      install, then run the test suite (extra arguments go to pytest)
 # Needs Python 3.12 or newer; it looks for $PYTHON, python3.13, python3.12, python3, and
 # pyenv's installed versions, and says so plainly when none is suitable.
@@ -62,6 +63,7 @@ case "${1:-}" in
         shift
         ensure_env
         "$VENV/bin/bayes-sst" fit data/sst-paper --out runs/sst-paper --force "$@"
+        "$VENV/bin/bayes-sst" report runs/sst-paper --out reports/sst-paper --force
         ;;
     test)
         shift

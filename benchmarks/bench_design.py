@@ -1,6 +1,6 @@
 """`bayes-sst design` checked against reality on the virtual table.
 
-1. Reality check (--reps, default 5): a 4-test virtual-table series (sst-paper truth, 2 %
+1. Reality check (--reps, default 5): a 4-test (and a 6-test) virtual-table series (sst-paper truth, 2 %
    test-to-test spread, the twin's coloured noise) is fitted; design recommends tests for
    targets Ke 2 %, Fmu 5 %; exactly the first 5 and the first 10 recommended tests are run on
    the virtual table (same table, new spread draws and noise), the series is refitted, and
@@ -30,7 +30,7 @@ from bayes_sst.twin import PlanItem, simulate
 
 TARGETS = {"Ke": 0.02, "Fmu": 0.05}
 START_PLAN = [PlanItem("sine", 0.5, 0.03), PlanItem("sine", 1.0, 0.04), PlanItem("sine", 2.0, 0.03),
-              PlanItem("triangle", 0.5, 0.05)]
+              PlanItem("triangle", 0.5, 0.05), PlanItem("sine", 0.75, 0.05), PlanItem("sine", 1.5, 0.02)]
 POOR_PLAN = [PlanItem("sine", 1.0, a) for a in (0.01, 0.02, 0.03, 0.04, 0.06, 0.08)]
 SPREAD = 0.02
 
@@ -56,13 +56,16 @@ def extended(series: Series, added: Series, tag: str) -> Series:
                   extra=series.extra)
 
 
-def reality_check(rep: int, n_outcomes: int, say) -> dict:
+def reality_check(rep: int, n_start: int, n_outcomes: int, say) -> dict:
     seed = 500 + rep
-    series = simulate("sst-paper", plan=START_PLAN, seed=seed, spread=SPREAD, name=f"design-check-{rep}")
+    series = simulate("sst-paper", plan=START_PLAN[:n_start], seed=seed, spread=SPREAD, name=f"design-check-{rep}")
     start = fit(series, seed=rep)
     result = design(start.tree, targets=TARGETS, max_tests=10, series=series, n_outcomes=n_outcomes, seed=rep)
     data = result.to_json()
+    spread = start.tree["posterior"]["between_test_sd"].sel(coefficient="Ke") / start.tree["posterior"]["Ke"]
     row = {"rep": rep, "seed": seed, "current": data["current"], "n_needed": data["n_needed"],
+           "Ke_relative_spread_posterior": {"q10": float(spread.quantile(0.1)), "q50": float(spread.quantile(0.5)),
+                                            "q90": float(spread.quantile(0.9)), "truth": SPREAD},
            "recommended": data["recommended"], "design_seconds": data["diagnostics"]["seconds"], "checks": {}}
     for n_added in (5, 10):
         plan = [PlanItem(c["kind"], c["frequency_hz"], c["amplitude_m"]) for c in data["recommended"][:n_added]]
@@ -75,7 +78,7 @@ def reality_check(rep: int, n_outcomes: int, say) -> dict:
             inside = band[name]["q10"] <= realised[name] <= band[name]["q90"]
             check[name] = {"realised": realised[name], **band[name], "inside": bool(inside)}
         row["checks"][str(n_added)] = check
-        say(f"rep {rep}, {n_added} added: " + ", ".join(
+        say(f"{n_start} tests, rep {rep}, {n_added} added: " + ", ".join(
             f"{k} {v['realised']:.2%} in [{v['q10']:.2%}, {v['q90']:.2%}] {'yes' if v['inside'] else 'NO'}"
             for k, v in check.items()))
     return row
@@ -113,6 +116,8 @@ def timing_20(say) -> dict:
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reps", type=int, default=5)
+    parser.add_argument("--start-tests", type=int, nargs="+", default=[4, 6],
+                        help="sizes of the starting series (first tests of START_PLAN)")
     parser.add_argument("--outcomes", type=int, default=64)
     parser.add_argument("--skip-poor", action="store_true")
     parser.add_argument("--timing", action="store_true")
@@ -123,18 +128,20 @@ def main():
     def say(message):
         print(f"[{time.perf_counter() - started:7.1f} s] {message}", flush=True)
 
-    out = {"targets": TARGETS, "start_plan": [p.describe() for p in START_PLAN], "spread": SPREAD}
+    out = {"targets": TARGETS, "spread": SPREAD}
     if args.timing:
         out["timing_20_tests"] = timing_20(say)
-    rows = [reality_check(rep, args.outcomes, say) for rep in range(args.reps)]
-    out["reality_check"] = rows
-    summary = {}
-    for n_added in ("5", "10"):
-        for name in TARGETS:
-            hits = sum(r["checks"][n_added][name]["inside"] for r in rows)
-            summary[f"{name}@{n_added}"] = f"{hits}/{len(rows)}"
-    out["reality_summary"] = summary
-    say("inside the predicted 80 % band: " + ", ".join(f"{k} {v}" for k, v in summary.items()))
+    for n_start in args.start_tests:
+        rows = [reality_check(rep, n_start, args.outcomes, say) for rep in range(args.reps)]
+        summary = {}
+        for n_added in ("5", "10"):
+            for name in TARGETS:
+                hits = sum(r["checks"][n_added][name]["inside"] for r in rows)
+                summary[f"{name}@{n_added}"] = f"{hits}/{len(rows)}"
+        out[f"reality_check_{n_start}_tests"] = {"start_plan": [p.describe() for p in START_PLAN[:n_start]],
+                                                 "summary": summary, "rows": rows}
+        say(f"start from {n_start} tests, inside the predicted 80 % band: "
+            + ", ".join(f"{k} {v}" for k, v in summary.items()))
     if not args.skip_poor:
         out["poor_plan"] = poor_plan(args.outcomes, say)
     write_json_atomic(args.out, out)

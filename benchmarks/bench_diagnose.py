@@ -15,7 +15,7 @@ import time
 
 from bayes_sst.diagnosis import diagnose
 from bayes_sst.physics import strut_cubic_stiffness
-from bayes_sst.twin import PRESETS, simulate
+from bayes_sst.twin import PRESETS, random_series, simulate
 
 TRUTH = PRESETS["sst-paper"]
 K3 = strut_cubic_stiffness(TRUTH.Ke, TRUTH.strut_gamma, TRUTH.strut_h, TRUTH.strut_l0)
@@ -35,13 +35,20 @@ CASES = [
     ("drift-5% (weak)", "drift", {"friction_drift": 0.05, "damping_drift": 0.05}, {"drift": 0.05}),
     ("cubic-gas-strut (weak)", "nonlinear_stiffness", {"cubic_stiffness": K3}, {"cubic_stiffness": K3}),
     ("cubic-3x", "nonlinear_stiffness", {"cubic_stiffness": 3 * K3}, {"cubic_stiffness": 3 * K3}),
-    ("hinge-friction-5e4", "position_friction", {"position_friction": 5e4}, {"position_friction": 5e4}),
+    ("hinge-friction-5e4 (weak)", "position_friction", {"position_friction": 5e4}, {"position_friction": 5e4}),
+    ("hinge-friction-1.5e5", "position_friction", {"position_friction": 1.5e5}, {"position_friction": 1.5e5}),
     ("stiction-1.3", "stiction", {"static_ratio": 1.3}, {"static_ratio": 1.3}),
+    ("stiction-1.5", "stiction", {"static_ratio": 1.5}, {"static_ratio": 1.5}),
+    ("random-1", None, "random", {}),
+    ("random-2", None, "random", {}),
 ]
 
 
 def run_case(label, expected, overrides, params, seed):
-    series = simulate("sst-paper", seed=seed, spread=0.02, truth_overrides=overrides)
+    if overrides == "random":
+        series = random_series(seed)   # an independent-lab-like clean table
+    else:
+        series = simulate("sst-paper", seed=seed, spread=0.02, truth_overrides=overrides)
     started = time.perf_counter()
     d = diagnose(series)
     seconds = time.perf_counter() - started
@@ -70,7 +77,7 @@ def main():
     cases = CASES[:1] + CASES[3:4] if args.quick else CASES
     rows = []
     for label, expected, overrides, params in cases:
-        seed = int(label.split("-")[1]) if label.startswith("clean-") else args.seed
+        seed = int(label.split("-")[1]) if label.startswith(("clean-", "random-")) else args.seed
         rows.append(run_case(label, expected, overrides, params, seed))
     print(f"{sum(r['ok'] for r in rows)}/{len(rows)} as expected; slowest diagnosis "
           f"{max(r['seconds'] for r in rows):.1f} s")

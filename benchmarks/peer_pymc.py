@@ -11,7 +11,7 @@ the regressors are x_k * centre_k / force_scale, so a coefficient theta_k in SI 
 centre_k * theta_k(scaled).
 
     mu_k      ~ Normal(1, 1)                   k in Me, Ke, Ce, Fmu (= N(centre, centre) in SI)
-    rho_k     ~ HalfNormal(0.1)                between-test sd, scaled units
+    rho_k     ~ LogNormal(log 0.03, 1)         between-test sd, scaled units
     z_jk      ~ Normal(0, 1);  theta_jk = mu_k + rho_k z_jk
     alpha     ~ TruncatedNormal(0.75, 0.5, 0.05, 1.95)
     phi_j     ~ Uniform(-0.999, 0.999)
@@ -147,7 +147,7 @@ def build_model(data: PeerData, priors: Priors | None = None, *, centred: bool =
         alpha = pm.TruncatedNormal("alpha", mu=priors.alpha_mean, sigma=priors.alpha_sd,
                                    lower=priors.alpha_low, upper=priors.alpha_high)
         mu = pm.Normal("mu", mu=prior_mean, sigma=prior_sd, dims="coefficient")
-        rho = pm.HalfNormal("rho", sigma=priors.spread_scale, dims="coefficient")
+        rho = pm.LogNormal("rho", mu=np.log(priors.spread_median), sigma=priors.spread_log_sd, dims="coefficient")
         if centred:
             theta = pm.Normal("theta", mu=mu, sigma=rho, dims=("test", "coefficient"))
         else:

@@ -4,7 +4,6 @@ against closed-form answers, candidate signals against the virtual table, the co
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +13,6 @@ from bayes_sst.design import Candidate, candidate_grid, parse_target, read_candi
 from bayes_sst.design._candidates import TableLimits, limit_violations, max_amplitude, peak_force, peak_motion, waveform
 from bayes_sst.design._engine import (
     Z90,
-    DesignPosterior,
     Terms,
     collapsed_terms,
     hermite,

@@ -54,6 +54,9 @@ def test_clean_series_selects_nothing(clean_diagnosis):
     # residual close to the model-free noise floor: the base model misses nothing
     assert d.rms_before < 1.15 * d.noise_floor
     assert {r["name"] for r in d.ranking} >= {"stiction", "specimen", "channel_delay", "drift"}
+    views = {r["name"]: r.get("view") for r in d.ranking}
+    assert views["nonlinear_stiffness"] == views["position_friction"] == "stroke"
+    assert d.stroke["selected"] == [] and d.stroke["base"]["spread"] <= 0.06
     base = d.base
     assert base["Me"] == pytest.approx(TRUTH.Me, rel=0.03)
     assert base["Ke"] == pytest.approx(TRUTH.Ke, rel=0.03)
@@ -65,6 +68,13 @@ def test_effect_data_keeps_reversals(clean_diagnosis):
     v = tests[0].v
     # no reversal band: samples slower than 20 % of the peak speed are kept
     assert np.mean(np.abs(v) < 0.2 * np.max(np.abs(v))) > 0.05
+    # the stroke view (effects growing with |u|): cut-off 8f, samples slower than 35 % of the peak left out
+    from bayes_sst.diagnosis._data import STROKE_SIGNALS
+
+    stroke = effect_data(series, STROKE_SIGNALS)
+    assert stroke[0].cutoff_hz == pytest.approx(2 * tests[0].cutoff_hz)
+    speed = np.abs(stroke[0].v)
+    assert speed.min() >= 0.35 * np.percentile(np.abs(stroke[0].v_full), 99.5) * 0.9
 
 
 def test_diagnose_command_finds_a_withheld_channel_delay(tmp_path, capsys):
@@ -92,10 +102,11 @@ def test_diagnose_command_finds_a_withheld_channel_delay(tmp_path, capsys):
 
 K3 = strut_cubic_stiffness(TRUTH.Ke, TRUTH.strut_gamma, TRUTH.strut_h, TRUTH.strut_l0)
 # Known gaps (docs/diagnosis.md): measured misses, kept as non-strict xfails so that a fix shows.
-NOT_FOUND = pytest.mark.xfail(strict=False, reason="not found on the twin: its clean base misfit at the "
-                              "reversals projects onto this effect's column (docs/diagnosis.md, gaps)")
+CUBIC = pytest.mark.xfail(strict=False, reason="3x the gas strut's K'e scores ~7 nats (< 15) on the stroke "
+                          "view and comes out 22 % low (docs/diagnosis.md, gaps)")
 STICTION = pytest.mark.xfail(strict=False, reason="the breakaway jolt is a few samples long; after the "
-                             "4f low-pass it is 50-120 N against a ~300 N floor (docs/diagnosis.md, gaps)")
+                             "4f low-pass it is 50-120 N against a ~370 N floor, and at 200 Hz the full-rate "
+                             "friction shows only 0.05-0.15 Fmu of it (docs/diagnosis.md, gaps)")
 WITHHELD = [
     # name, overrides, {reported parameter: true value}, shrink asserted
     pytest.param("channel_delay", {"force_delay": 0.003}, {"delay": 0.003}, True, id="delay-3ms"),
@@ -108,9 +119,10 @@ WITHHELD = [
     # shrink is ~0 by construction; its predictive gain is the score (docs/diagnosis.md, gaps)
     pytest.param("drift", {"friction_drift": 0.15, "damping_drift": 0.15}, {"drift": 0.15}, False, id="drift-15%"),
     pytest.param("nonlinear_stiffness", {"cubic_stiffness": 3 * K3}, {"cubic_stiffness": 3 * K3}, True,
-                 id="cubic-3x", marks=NOT_FOUND),
+                 id="cubic-3x", marks=CUBIC),
+    # scored on the stroke view (8f, reversal band 35 %), where the rest-interval misfit is left out
     pytest.param("position_friction", {"position_friction": 1.5e5}, {"position_friction": 1.5e5}, True,
-                 id="hinge-1.5e5", marks=NOT_FOUND),
+                 id="hinge-1.5e5"),
     pytest.param("stiction", {"static_ratio": 1.5}, {"static_ratio": 1.5}, True, id="stiction-1.5",
                  marks=STICTION),
 ]

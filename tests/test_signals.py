@@ -292,8 +292,8 @@ def test_prepare_test_trims_to_the_steady_window(clean):
         # an error of about A w^3/32 / (4 w) = A w^2/128 ~ 0.8 % in a near the window's start.
         om, amp = 2 * np.pi * f, record.spec.amplitude_m
         np.testing.assert_allclose(prep.u, truth["u"][prep.index], rtol=0, atol=5e-4 * amp)
-        # v comes from a 10 ms Gaussian kernel, which scales a sine by exp(-(w s)^2/2)
-        gain = np.exp(-0.5 * (om * 0.01) ** 2)
+        # v comes from a 2.5 ms Gaussian kernel, which scales a sine by exp(-(w s)^2/2)
+        gain = np.exp(-0.5 * (om * 0.0025) ** 2)
         np.testing.assert_allclose(prep.v, gain * truth["v"][prep.index], rtol=0, atol=1.5e-3 * om * amp)
         np.testing.assert_allclose(prep.a, truth["a"][prep.index], rtol=0, atol=1.2e-2 * om**2 * amp)
 
@@ -343,7 +343,11 @@ def test_filtered_velocity_has_two_reversals_per_cycle(noisy):
         prep = prepare_test(record)
         w = prep.window
         moving_up = prep.velocity_full[w.start : w.stop] > 0
-        assert np.count_nonzero(np.diff(moving_up)) == 2 * w.n_cycles
+        # a 2.5 ms kernel leaves sensor noise that may flip the sign a few times right at a
+        # reversal; grouped within 5 % of a period, the flips are two reversals per cycle
+        flips = np.flatnonzero(np.diff(moving_up))
+        groups = 1 + np.count_nonzero(np.diff(flips) > 0.05 * FS / record.spec.frequency_hz)
+        assert groups == 2 * w.n_cycles
         raw = np.gradient(record.u, 1.0 / FS)[w.start : w.stop] > 0
         assert np.count_nonzero(np.diff(raw)) > 10 * 2 * w.n_cycles
         # the friction regressor's sign follows those two reversals too

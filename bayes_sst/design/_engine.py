@@ -281,22 +281,25 @@ def noise_sources(prepared: Sequence[PreparedTest], kinds, frequencies, amplitud
     column dynamics scale with it), then amplitude and kind:
     d = (dlog f)^2 + 0.1 (dlog A)^2 + 0.1 [kind differs].
     Inflation: outside the recorded envelope the residual is assumed to grow in proportion to
-    how far the test goes, max(1, f/f_max, f_min/f) * max(1, a_peak/a_peak_max), a_peak the
-    peak commanded acceleration. On the virtual table a 3 Hz triangle at the acceleration
-    limit left a residual 2.6 times that of the nearest recorded 2 Hz sine; without the
-    inflation the design trusted such tests far too much.
+    how far the test goes, max(1, f/f_max, f_min/f) * max(1, a_peak/a_peak_max) *
+    max(1, v_peak_min/v_peak), with the peak commanded acceleration and velocity. On the
+    virtual table a 3 Hz triangle at the acceleration limit left a residual 2.6 times that of
+    the nearest recorded 2 Hz sine, and slow tests (peak speed a few cm/s, where friction and
+    |v|^alpha damping look alike) left alpha and Fmu on a ridge the refit could not sample;
+    without the inflation the design trusted such tests far too much.
     """
     from bayes_sst.design._candidates import peak_motion
 
     f0 = np.array([t.frequency_hz for t in prepared])
     a0 = np.array([t.amplitude_m for t in prepared])
     k0 = np.array([t.kind for t in prepared])
-    acc0 = np.array([peak_motion(t.kind, t.frequency_hz, t.amplitude_m)[2] for t in prepared])
+    peaks0 = np.array([peak_motion(t.kind, t.frequency_hz, t.amplitude_m) for t in prepared])
     out = []
     for kind, f, a in zip(kinds, frequencies, amplitudes):
         distance = (np.log(f0 / f)) ** 2 + 0.1 * (np.log(a0 / a)) ** 2 + 0.1 * (k0 != kind)
-        acc = peak_motion(kind, f, a)[2]
-        inflation = max(1.0, f / f0.max(), f0.min() / f) * max(1.0, acc / acc0.max())
+        _, speed, acc = peak_motion(kind, f, a)
+        inflation = (max(1.0, f / f0.max(), f0.min() / f) * max(1.0, acc / peaks0[:, 2].max())
+                     * max(1.0, peaks0[:, 1].min() / speed))
         out.append(NoiseSource(int(np.argmin(distance)), float(inflation)))
     return out
 
@@ -333,17 +336,6 @@ def mixture_quantiles(weights: np.ndarray, means: np.ndarray, sds: np.ndarray, l
             x = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
         out.append(x)
     return np.stack(out)
-
-
-def weighted_quantiles(weights: np.ndarray, values: np.ndarray, levels=(0.05, 0.95)) -> np.ndarray:
-    """Quantiles of the weighted sample (values (S,), weights (..., S)), by the interpolated CDF."""
-    order = np.argsort(values)
-    v = values[order]
-    w = weights[..., order]
-    cdf = np.cumsum(w, axis=-1) - 0.5 * w
-    flat = cdf.reshape(-1, len(v))
-    out = np.stack([[np.interp(level, row, v) for row in flat] for level in levels])
-    return out.reshape((len(levels),) + weights.shape[:-1])
 
 
 def half_widths_from_draws(post: DesignPosterior) -> dict[str, float]:
@@ -385,13 +377,15 @@ def alpha_laplace(post: DesignPosterior, base_info: np.ndarray, tests: Sequence[
 
 
 def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTest], *, n_outcomes: int,
-                       seed: int, base_info: np.ndarray | None = None, max_components: int = 128):
+                       seed: int, base_info: np.ndarray | None = None, max_components: int = 128,
+                       truths: np.ndarray | None = None):
     """Predicted relative half-widths after adding tests[:n], n = 0..len(tests), over outcomes.
 
     Returns (half (R, N+1, 5) in PARAMETERS order, ess (R, N+1)): for each outcome r a
     posterior draw plays the truth; the added tests get theta_j ~ N(mu_r, diag(rho_r^2)) and
     AR(1) noise with the (phi, sigma) of their nearest recorded test in that draw; the
-    updated posterior reweights all draws (module docstring).
+    updated posterior reweights all draws (module docstring). `truths` (indices of draws)
+    fixes which draws play the truth, for diagnosis.
 
     With many added tests the reweighting rests on few draws and their spread in alpha
     understates alpha's remaining uncertainty (and that of Ce, Fmu, which move with it).
@@ -402,10 +396,19 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
     """
     rng = np.random.default_rng(seed)
     S, N = post.n_draws, len(tests)
+    if truths is None:
+        truths = rng.choice(S, size=n_outcomes, replace=n_outcomes > S)
+    # draws in random order, so that where weights tie (no test added yet) the heaviest
+    # components kept for the quantiles are a random subset, not the first chain's start
+    order = rng.permutation(S)
+    truths = np.argsort(order)[np.asarray(truths)]
+    post = post.subset(order)
+    old = Terms(old.c[order], old.h[order], old.H[order])
+    if base_info is not None:
+        base_info = base_info[order]
     _, _, old_loglik = population(old.c, old.h, old.H, post.prior_mean, post.prior_sd)
-    half = np.empty((n_outcomes, N + 1, len(PARAMETERS)))
-    ess = np.empty((n_outcomes, N + 1))
-    truths = rng.choice(S, size=n_outcomes, replace=n_outcomes > S)
+    half = np.empty((len(truths), N + 1, len(PARAMETERS)))
+    ess = np.empty((len(truths), N + 1))
     alpha_index = PARAMETERS.index("alpha")
     coefficient_slots = [PARAMETERS.index(name) for name in COEFFICIENTS]
     if base_info is not None:

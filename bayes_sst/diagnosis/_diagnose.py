@@ -20,6 +20,10 @@
 5. How far: residual RMS before and after (overall and in the top region), the share of the
    excess mean square removed, shrink = 1 - (rms_after^2 - floor^2)/(rms_before^2 - floor^2),
    and the relative shift of the base parameters.
+Effects that grow with |u| (STROKE_EFFECTS) are scored the same way on the stroke view
+(bayes_sst.diagnosis._data.STROKE_SIGNALS: cut-off 8f, samples slower than 35 % of the peak
+speed left out) against that view's own base model: in the default view the table's rest at
+each reversal, where |u| is largest, projects onto their columns.
 Broadband tests add the oil_column check (bayes_sst.diagnosis._oil), scored on their
 command-to-motion frequency response; when it is the only effect selected, noise_floor,
 rms_before, rms_after and shrink are those of the frequency-response misfit (dimensionless).
@@ -34,7 +38,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, effect_data
+from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, STROKE_SIGNALS, effect_data
 from bayes_sst.diagnosis._engine import ModelFit, Scorer
 from bayes_sst.diagnosis._oil import oil_column_check
 from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
@@ -50,6 +54,8 @@ Z_LOSS = 5.0
 NULL_NATS_PER_TEST = 0.5
 MAX_SELECTED = 3
 REVERSAL_SHARE = 0.2
+# effects that grow with |u|, scored on the stroke view (bayes_sst.diagnosis._data.STROKE_SIGNALS)
+STROKE_EFFECTS = ("nonlinear_stiffness", "position_friction", "strut_inertia")
 
 
 @dataclass
@@ -72,6 +78,7 @@ class Diagnosis:
     oil: dict[str, Any] | None
     timings: dict[str, float]
     settings: dict[str, Any]
+    stroke: dict[str, Any] | None = None
     # arrays kept for the figures (not in the json)
     figures: dict[str, Any] = field(default_factory=dict, repr=False)
 
@@ -105,6 +112,7 @@ class Diagnosis:
             "located_region": self.region,
             "steps": self.steps,
             "oil_column": self.oil,
+            "stroke_view": self.stroke,
             "timings_s": self.timings,
             "settings": self.settings,
             "units": "SI (N, kg, m, s, Hz); score and score_se in nats (log predictive density)",
@@ -293,6 +301,87 @@ def _entry(score: EffectScore) -> dict[str, Any]:
             "test_elpd_diff": [float(x) for x in score.diff]}
 
 
+def _selectable(s: EffectScore, entry: dict[str, Any]) -> bool:
+    """The selection rule (module docstring, step 4)."""
+    return (not s.at_bound and s.score >= MIN_SCORE
+            and (s.score >= Z_SELECT * s.score_se or entry["sign_p"] <= SIGN_P or entry["z_loss"] >= Z_LOSS))
+
+
+def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: float, say, timings,
+            label: str = ""):
+    """Greedy selection: score every effect against the current model, add the best selectable one,
+    re-score the rest on top of it (those that helped alone), up to MAX_SELECTED.
+    Returns (selected EffectScores, final model, first-round ranking entries, steps)."""
+    current = base
+    remaining = list(effects)
+    selected: list[EffectScore] = []
+    ranking: list[dict[str, Any]] = []
+    steps: list[dict[str, Any]] = []
+    first_round: dict[str, EffectScore] = {}
+    for round_index in range(MAX_SELECTED):
+        if not remaining:
+            break
+        t0 = time.perf_counter()
+        scores = []
+        for effect in remaining:
+            if round_index > 0 and first_round[effect.name].score <= 0:
+                continue  # an effect that did not help alone is not tried on top of another
+            scores.append(score_effect(scorer, effect, current))
+        timings[f"{label}round_{round_index + 1}"] = time.perf_counter() - t0
+        scores.sort(key=lambda s: -s.score)
+        if round_index == 0:
+            first_round = {s.effect.name: s for s in scores}
+            ranking = [_entry(s) for s in scores]
+        rms_now = _rms(current.residuals)
+        step = {"given": [s.effect.name for s in selected],
+                "candidates": [dict(_entry(s), shrink=_shrink(rms_now, _rms(s.fit.residuals), floor))
+                               for s in scores]}
+        if label:
+            step["view"] = label.rstrip("_")
+        steps.append(step)
+        chosen = next((s for s, entry in zip(scores, step["candidates"]) if _selectable(s, entry)), None)
+        if chosen is None:
+            break
+        say(f"selected {chosen.effect.name} (score {chosen.score:.1f} +- {chosen.score_se:.1f})")
+        selected.append(chosen)
+        # the new current model, alpha profiled afresh over the whole range
+        current = fit_base(scorer, list(current.terms) + [(chosen.effect, chosen.setting)])
+        remaining = [e for e in remaining if e.name != chosen.effect.name]
+    return selected, current, ranking, steps
+
+
+def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
+    """Per-test noise floors and their sample-weighted overall value."""
+    floors = np.array([noise_floor(t, full_rate_residual(t, fit, j)) for j, t in enumerate(tests)])
+    n = np.array([len(t.index) for t in tests])
+    return floors, float(np.sqrt(np.sum(n * floors**2) / n.sum()))
+
+
+def _stroke_view(series: Series, effects: Sequence[Effect], signals: SignalOptions, say, timings) -> dict[str, Any]:
+    """Score the effects that grow with |u| on the stroke view (STROKE_SIGNALS: cut-off 8f, samples
+    slower than 35 % of the peak speed left out), against that view's own base model."""
+    options = STROKE_SIGNALS if signals == DIAGNOSIS_SIGNALS else signals
+    tests = effect_data(series, options)
+    stroke = max(float(np.max(np.abs(t.u))) for t in tests)
+    scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
+    say(f"stroke view: screening {len(effects)} effects that grow with |u| ...")
+    base = fit_base(scorer)
+    _, floor = _floor(tests, base)
+    selected, final, ranking, steps = _select(scorer, base, effects, floor, say, timings, "stroke_")
+    for entry in ranking:
+        entry["view"] = "stroke"
+    rms_before, rms_after = _rms(base.residuals), _rms(final.residuals)
+    b, f = base.base(), final.base()
+    return {
+        "selected": [s.effect.name for s in selected], "ranking": ranking, "steps": steps,
+        "noise_floor": floor, "rms_before": rms_before, "rms_after": rms_after,
+        "shrink": _shrink(rms_before, rms_after, floor) if selected else 0.0,
+        "base_shift": {k: float((f[k] - b[k]) / b[k]) for k in b},
+        "base": dict(b, spread=base.spread), "final": dict(f, spread=final.spread),
+        "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
+    }
+
+
 def _broadband_only(series: Series, started: float) -> Diagnosis:
     """A series without periodic tests: only the oil_column check applies."""
     oil = oil_column_check(series)
@@ -305,7 +394,7 @@ def _broadband_only(series: Series, started: float) -> Diagnosis:
         series_name=series.name, selected=["oil_column"] if chosen else [], ranking=[entry], where=[],
         noise_floor=oil["noise_floor"], rms_before=oil["rms_before"],
         rms_after=oil["rms_after"] if chosen else oil["rms_before"], shrink=oil["shrink"] if chosen else 0.0,
-        base_shift={}, base={}, final={}, region={}, steps=[], oil=oil,
+        base_shift={}, base={}, final={}, region={}, steps=[], oil=oil, stroke=None,
         timings={"total": time.perf_counter() - started}, settings={"z_select": Z_SELECT, "min_score": MIN_SCORE},
     )
 
@@ -325,8 +414,8 @@ def diagnose(
     if not series.periodic_tests:
         return _broadband_only(series, started)
     tests = effect_data(series, signals)
-    stroke = max(float(np.max(np.abs(t.u))) for t in tests)
-    scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
+    max_stroke = max(float(np.max(np.abs(t.u))) for t in tests)
+    scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": max_stroke})
     alpha_start = None
     if run_tree is not None:
         alpha_start = float(run_tree["posterior"]["alpha"].median())
@@ -341,49 +430,10 @@ def diagnose(
     rms_before = _rms(base.residuals)
     where = locate(tests, base.residuals, floors)
 
-    say(f"screening {len(effects)} candidate effects ...")
-    current = base
-    remaining = list(effects)
-    selected: list[EffectScore] = []
-    ranking: list[dict[str, Any]] = []
-    steps: list[dict[str, Any]] = []
-    first_round: dict[str, EffectScore] = {}
-    for round_index in range(MAX_SELECTED):
-        t0 = time.perf_counter()
-        scores = []
-        for effect in remaining:
-            if round_index > 0 and first_round[effect.name].score <= 0:
-                continue  # an effect that did not help alone is not tried on top of another
-            scores.append(score_effect(scorer, effect, current))
-        timings[f"round_{round_index + 1}"] = time.perf_counter() - t0
-        scores.sort(key=lambda s: -s.score)
-        if round_index == 0:
-            first_round = {s.effect.name: s for s in scores}
-            ranking = [_entry(s) for s in scores]
-        rms_now = _rms(current.residuals)
-        step = {"given": [s.effect.name for s in selected],
-                "candidates": [dict(_entry(s), shrink=_shrink(rms_now, _rms(s.fit.residuals), floor))
-                               for s in scores]}
-        steps.append(step)
-        chosen = None
-        for s, entry in zip(scores, step["candidates"]):
-            entry["sign_p"] = sign_test(s.diff)
-            entry["z_loss"] = loss_scaled_z(s.diff)
-            if not s.at_bound and s.score >= MIN_SCORE and (
-                    s.score >= Z_SELECT * s.score_se or entry["sign_p"] <= SIGN_P or entry["z_loss"] >= Z_LOSS):
-                chosen = s
-                break
-        if chosen is None:
-            break
-        say(f"selected {chosen.effect.name} (score {chosen.score:.1f} +- {chosen.score_se:.1f})")
-        selected.append(chosen)
-        # the new current model, alpha profiled afresh over the whole range
-        current = fit_base(scorer, list(current.terms) + [(chosen.effect, chosen.setting)])
-        # refresh the selected effect's entry in the ranking with its parameters in context
-        remaining = [e for e in remaining if e.name != chosen.effect.name]
-        if not remaining:
-            break
-
+    main_effects = [e for e in effects if e.name not in STROKE_EFFECTS]
+    stroke_effects = [e for e in effects if e.name in STROKE_EFFECTS]
+    say(f"screening {len(main_effects)} candidate effects ...")
+    selected, current, ranking, steps = _select(scorer, base, main_effects, floor, say, timings)
     final = current
     rms_after = _rms(final.residuals)
     top = next((w for w in where if not w.get("band") and w["share"] > 0), None)
@@ -399,6 +449,21 @@ def diagnose(
     selected_names = [s.effect.name for s in selected]
     shrink = _shrink(rms_before, rms_after, floor) if selected else 0.0
 
+    stroke = None
+    if stroke_effects:
+        t0 = time.perf_counter()
+        stroke = _stroke_view(series, stroke_effects, signals, say, timings)
+        timings["stroke_view"] = time.perf_counter() - t0
+        ranking = sorted(ranking + stroke.pop("ranking"), key=lambda r: -r["score"])
+        steps += stroke.pop("steps")
+        if stroke["selected"]:
+            selected_names += stroke["selected"]
+            if not selected:
+                # found only in the stroke view: report that view's residuals and shift
+                floor, rms_before, rms_after, shrink = (stroke["noise_floor"], stroke["rms_before"],
+                                                        stroke["rms_after"], stroke["shrink"])
+                base_shift = stroke["base_shift"]
+
     t0 = time.perf_counter()
     oil = oil_column_check(series)
     timings["oil_column"] = time.perf_counter() - t0
@@ -411,7 +476,7 @@ def diagnose(
             say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f})")
             selected_names.append("oil_column")
             oil["selected"] = True
-            if not selected:
+            if not selected and not (stroke and stroke["selected"]):
                 # the oil column is the only finding: report its own (frequency-response) misfit
                 floor, rms_before, rms_after, shrink = (oil["noise_floor"], oil["rms_before"],
                                                         oil["rms_after"], oil["shrink"])
@@ -431,6 +496,7 @@ def diagnose(
         region=region,
         steps=steps,
         oil=oil,
+        stroke=stroke,
         timings=timings,
         settings={"z_select": Z_SELECT, "min_score": MIN_SCORE, "sign_p": SIGN_P, "improved_nats": IMPROVED_NATS, "z_loss": Z_LOSS,
                   "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,

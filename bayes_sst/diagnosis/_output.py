@@ -33,7 +33,8 @@ def format_diagnosis(data: dict) -> str:
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
-        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}")
+        view = "  (stroke view: 8f, |v| >= 35 % of peak)" if r.get("view") == "stroke" else ""
+        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}")
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
                   + ", ".join(f"{k} {100 * v:+.1f} %" for k, v in data["base_shift"].items())]

@@ -124,7 +124,8 @@ def fit(
         alpha_sd=priors.alpha_sd,
         alpha_low=priors.alpha_low,
         alpha_high=priors.alpha_high,
-        spread_scale=priors.spread_scale,
+        spread_median=priors.spread_median,
+        spread_log_sd=priors.spread_log_sd,
         noise_loc=float(np.log(priors.noise_scale)),
         noise_log_sd=priors.noise_log_sd,
     )

@@ -22,7 +22,8 @@ class ScaledPriors(NamedTuple):
     alpha_sd: float
     alpha_low: float
     alpha_high: float
-    spread_scale: float
+    spread_median: float
+    spread_log_sd: float
     noise_loc: float
     noise_log_sd: float
 
@@ -38,7 +39,7 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
         "alpha",
         dist.TruncatedNormal(priors.alpha_mean, priors.alpha_sd, low=priors.alpha_low, high=priors.alpha_high),
     )
-    spread = numpyro.sample("spread", dist.HalfNormal(priors.spread_scale).expand([4]).to_event(1))
+    spread = numpyro.sample("spread", dist.LogNormal(jnp.log(priors.spread_median), priors.spread_log_sd).expand([4]).to_event(1))
     with numpyro.plate("test", n_tests):
         phi = numpyro.sample("phi", dist.Uniform(-PHI_BOUND, PHI_BOUND))
         sigma = numpyro.sample("sigma", dist.LogNormal(priors.noise_loc, priors.noise_log_sd))

@@ -40,10 +40,15 @@ def read_run_summary(path) -> dict:
 
 
 def read_run_tree(path):
-    """The posterior DataTree of a run folder."""
+    """The posterior DataTree of a run folder, read fully into memory, its file closed again.
+
+    A lazily opened tree keeps an HDF5 handle until garbage collection, and opening the same
+    file again while such handles linger has crashed the netCDF4 library; runs are small.
+    """
     import xarray as xr
 
     file = Path(path) / POSTERIOR_FILE
     if not file.is_file():
         raise SeriesFormatError(path, "", f"not a run folder: {POSTERIOR_FILE} is missing")
-    return xr.open_datatree(file, engine="netcdf4")
+    with xr.open_datatree(file, engine="netcdf4") as lazy:
+        return lazy.load().copy(deep=True)
