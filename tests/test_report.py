@@ -16,9 +16,8 @@ import xarray as xr
 from bayes_sst.cli import main
 from bayes_sst.inference import fit, posterior_predictive, run_prepared
 from bayes_sst.inference._summary import format_summary, summarize
-from bayes_sst.io import write_run, write_series
+from bayes_sst.io import read_run_tree, write_run, write_series
 from bayes_sst.report import build_report, loop_energy, peak_force, rms_force, write_report
-from bayes_sst.report._build import load_run_tree
 from bayes_sst.report._checks import thinned_posterior
 from bayes_sst.twin import simulate
 
@@ -107,7 +106,7 @@ def test_band_coverage_in_report_json_matches_an_independent_recount(runs):
     from scipy.stats import norm
 
     data = runs["report"].data
-    tree = load_run_tree(runs["good"])
+    tree = read_run_tree(runs["good"])
     prepared = run_prepared(tree)
     posterior = thinned_posterior(tree, 300)
     predictives = posterior_predictive(xr.DataTree.from_dict({"posterior": posterior}), prepared,
@@ -161,7 +160,7 @@ def test_observed_energy_per_cycle_matches_the_recorded_rate_trapezoid(runs):
     from bayes_sst.signals._filters import zero_phase_lowpass
 
     data = runs["report"].data
-    tree = load_run_tree(runs["good"])
+    tree = read_run_tree(runs["good"])
     prepared = {t.id: t for t in run_prepared(tree)}
     records = {r.spec.id: r for r in runs["series"].tests}
     for row in data["tests"]:
@@ -188,7 +187,7 @@ def test_report_json_sections_and_healthy_run(runs):
     failed = [c for c in data["health"]["checks"] if not c["ok"]]
     assert not failed, failed
     truth = runs["series"].extra["truth"]
-    run_tree = load_run_tree(runs["good"])
+    run_tree = read_run_tree(runs["good"])
     for name in ("Me", "Ke", "Ce", "alpha", "Fmu"):
         p = data["parameters"][name]
         assert p["q05"] <= p["mean"] <= p["q95"]

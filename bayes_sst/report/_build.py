@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bayes_sst.io import read_run_tree
 from bayes_sst.inference._summary import POPULATION
 from bayes_sst.reference import PUBLISHED_SST
 from bayes_sst.report import _checks, _figures, _health
@@ -54,19 +55,6 @@ def _versions() -> dict:
         except PackageNotFoundError:
             out[name] = None
     return out
-
-
-def load_run_tree(run):
-    """The run's DataTree read fully into memory, its netCDF file closed again.
-
-    A lazily opened tree keeps an HDF5 handle open until garbage collection; opening the
-    same file again while such handles linger has crashed the netCDF4 library (seen when
-    one process writes several reports of one run), and the report needs all the data anyway.
-    """
-    from bayes_sst.io import read_run_tree
-
-    with read_run_tree(run) as lazy:
-        return lazy.load().copy(deep=True)
 
 
 def _run_summary(run: Path) -> dict:
@@ -180,7 +168,7 @@ def build_report(run, *, draws: int = DEFAULT_DRAWS, seed: int = 0, series=None,
     cpu_started = time.process_time()
     timings: dict[str, float] = {}
     run = Path(run)
-    tree = load_run_tree(run)
+    tree = read_run_tree(run)
     summary = _run_summary(run)
     prepared = run_prepared(tree, series)
     timings["read and prepare"] = time.perf_counter() - started
