@@ -34,7 +34,15 @@ import numpy as np
 from scipy.special import erfinv, ndtr
 
 from bayes_sst.inference import _smalllinalg as sl
-from bayes_sst.inference._statistics import ALPHA_MAX, ALPHA_MIN, ALPHA_STEP, COEFFICIENTS, damping_columns
+from bayes_sst.inference._statistics import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    ALPHA_STEP,
+    COEFFICIENTS,
+    pair_moments,
+    response_moments,
+    scaled_regressors,
+)
 from bayes_sst.signals import PreparedTest
 
 LOG_2PI = math.log(2 * math.pi)
@@ -133,38 +141,14 @@ class TestColumns(NamedTuple):
 
 
 def regressor_columns(test: PreparedTest, grid: np.ndarray, scale: np.ndarray, force_scale: float) -> TestColumns:
-    """TestColumns of a prepared (recorded or candidate) test."""
-    both = test.regressor(damping_columns(grid))
-    g, n = len(grid), len(test.index)
-    X = np.empty((g, 4, n))
-    X[:, 0] = test.a
-    X[:, 1] = test.u
-    X[:, 2] = both[:g]
-    X[:, 3] = test.friction_sign
-    dX = np.zeros_like(X)
-    dX[:, 2] = both[g:]
-    factor = (scale / force_scale)[None, :, None]
-    valid = (test.keep[1:] & test.keep[:-1]).astype(float)
-    return TestColumns(X * factor, dX * factor, valid, grid)
-
-
-def _pair_moments(p: np.ndarray, q: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """[sum p_t q_t', sum p_t q_(t-1)', sum p_(t-1) q_(t-1)'] over valid pairs; p, q (G, k, n)."""
-    pn, pb = p[..., 1:] * valid, p[..., :-1] * valid
-    qn, qb = q[..., 1:], q[..., :-1]
-    return np.stack([np.einsum("git,gjt->gij", pn, qn), np.einsum("git,gjt->gij", pn, qb),
-                     np.einsum("git,gjt->gij", pb, qb)], axis=1)
+    """TestColumns of a prepared (recorded or candidate) test: the fit's scaled regressors."""
+    return TestColumns(*scaled_regressors(test, grid, scale, force_scale), grid)
 
 
 def lagged(columns: TestColumns, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lagged moments (G, 3, 5, 5) of z = (y, x) and their alpha-slopes, for a scaled response y (n,)
     (y a function of the test only, not of alpha)."""
-    g = len(columns.grid)
-    z = np.concatenate([np.broadcast_to(y, (g, 1, len(y))), columns.X], axis=1)
-    dz = np.concatenate([np.zeros((g, 1, len(y))), columns.dX], axis=1)
-    moments = _pair_moments(z, z, columns.valid)
-    slopes = _pair_moments(dz, z, columns.valid) + _pair_moments(z, dz, columns.valid)
-    return moments, slopes
+    return response_moments(y, columns.X, columns.dX, columns.valid)
 
 
 def hermite(values: np.ndarray, slopes: np.ndarray, grid: np.ndarray, alpha: np.ndarray) -> np.ndarray:
@@ -474,7 +458,7 @@ def fisher_information(post: DesignPosterior, columns: TestColumns, noise: "Nois
     g = len(columns.grid)
     z = np.concatenate([columns.X, columns.dX[:, 2:3]], axis=1)  # (G, 5, n): x1..x4, dx3/dalpha
     # d/dalpha of the table, by finite differences of the grid (the info is smooth in alpha)
-    moments = _pair_moments(z, z, columns.valid)
+    moments = pair_moments(z, z, columns.valid)
     slopes = np.gradient(moments, columns.grid, axis=0) if g > 2 else np.zeros_like(moments)
     M = whiten(hermite(moments, slopes, columns.grid, post.alpha), post.phi[:, twin])
     M = M / ((post.sigma[:, twin] * noise.inflation) ** 2)[:, None, None]

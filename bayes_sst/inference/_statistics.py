@@ -67,22 +67,47 @@ def damping_columns(alpha_grid: np.ndarray):
     return of_velocity
 
 
-def _velocity_columns(test: PreparedTest, alpha_grid: np.ndarray):
-    """filter(|v|^alpha sign v) and its alpha-derivative filter(|v|^alpha log|v| sign v), (G, n),
-    and filter(sign v), (n,), at the test's kept samples."""
+def scaled_regressors(test: PreparedTest, alpha_grid: np.ndarray, coefficient_scale: np.ndarray, force_scale: float):
+    """The test's regressors on an alpha grid, in scaled units, at its kept samples.
+
+    X (G, 4, n) = (a, u, filter(|v|^alpha sign v), filter(sign v)) * coefficient_scale /
+    force_scale; dX (G, 4, n) its alpha-derivative (only the damping column moves);
+    valid (n-1,) 1.0 for consecutive pairs that both enter the likelihood.
+    """
     both = test.regressor(damping_columns(alpha_grid))
-    g = len(alpha_grid)
-    return both[:g], both[g:], test.friction_sign
+    g, n = len(alpha_grid), len(test.index)
+    X = np.empty((g, 4, n))
+    X[:, 0] = test.a
+    X[:, 1] = test.u
+    X[:, 2] = both[:g]
+    X[:, 3] = test.friction_sign
+    dX = np.zeros_like(X)
+    dX[:, 2] = both[g:]
+    factor = (np.asarray(coefficient_scale, dtype=float) / force_scale)[None, :, None]
+    valid = (test.keep[1:] & test.keep[:-1]).astype(float)
+    return X * factor, dX * factor, valid
 
 
-def _pair_moments(p: np.ndarray, q: np.ndarray, valid: np.ndarray):
-    """[sum p_t q_t', sum p_t q_(t-1)', sum p_(t-1) q_(t-1)'] over valid pairs; p, q (..., 5, n)."""
+def pair_moments(p: np.ndarray, q: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """[sum p_t q_t', sum p_t q_(t-1)', sum p_(t-1) q_(t-1)'] over valid pairs; p, q (..., k, n),
+    result (..., 3, k, k)."""
     p_now, p_before = p[..., 1:] * valid, p[..., :-1] * valid
     q_now, q_before = q[..., 1:], q[..., :-1]
     m0 = np.einsum("...it,...jt->...ij", p_now, q_now)
     m1 = np.einsum("...it,...jt->...ij", p_now, q_before)
     m2 = np.einsum("...it,...jt->...ij", p_before, q_before)
     return np.stack([m0, m1, m2], axis=-3)
+
+
+def response_moments(y: np.ndarray, X: np.ndarray, dX: np.ndarray, valid: np.ndarray):
+    """Lagged moments (G, 3, 5, 5) of z = (y, x) and their exact alpha-slopes, for a scaled
+    response y (n,) that does not depend on alpha; d/dalpha of sum p q' is sum (dp q' + p dq')."""
+    g, n = X.shape[0], X.shape[-1]
+    z = np.concatenate([np.broadcast_to(y, (g, 1, n)), X], axis=1)
+    dz = np.concatenate([np.zeros((g, 1, n)), dX], axis=1)
+    moments = pair_moments(z, z, valid)
+    slopes = pair_moments(dz, z, valid) + pair_moments(z, dz, valid)
+    return moments, slopes
 
 
 def lagged_moments(
@@ -98,23 +123,10 @@ def lagged_moments(
     force_scale = float(
         np.sqrt(np.mean(np.concatenate([(t.F - t.payload_kg * t.a)[t.keep] ** 2 for t in tests])))
     )
-    g = len(alpha_grid)
     all_moments, all_slopes, n_pairs = [], [], []
     for test in tests:
-        damping, damping_slope, sign_column = _velocity_columns(test, alpha_grid)
-        n = len(test.index)
-        z = np.empty((g, 5, n))
-        z[:, 0] = (test.F - test.payload_kg * test.a) / force_scale
-        z[:, 1] = test.a * coefficient_scale[0] / force_scale
-        z[:, 2] = test.u * coefficient_scale[1] / force_scale
-        z[:, 3] = damping * coefficient_scale[2] / force_scale
-        z[:, 4] = sign_column * coefficient_scale[3] / force_scale
-        dz = np.zeros_like(z)
-        dz[:, 3] = damping_slope * coefficient_scale[2] / force_scale
-        valid = (test.keep[1:] & test.keep[:-1]).astype(float)
-        moments = _pair_moments(z, z, valid)
-        # d/dalpha of sum p q' is sum (dp q' + p dq'), lag by lag
-        slopes = _pair_moments(dz, z, valid) + _pair_moments(z, dz, valid)
+        X, dX, valid = scaled_regressors(test, alpha_grid, coefficient_scale, force_scale)
+        moments, slopes = response_moments((test.F - test.payload_kg * test.a) / force_scale, X, dX, valid)
         all_moments.append(moments)
         all_slopes.append(slopes)
         n_pairs.append(valid.sum())
