@@ -26,7 +26,10 @@ def _cmd_simulate(args) -> int:
 
 
 def _cmd_fit(args) -> int:
+    from dataclasses import replace
+
     from bayes_sst.inference import fit
+    from bayes_sst.inference._priors import make_priors
     from bayes_sst.inference._summary import format_summary, summarize
     from bayes_sst.io import check_run_target, load_series, write_run
     from bayes_sst.signals import SignalOptions
@@ -36,13 +39,16 @@ def _cmd_fit(args) -> int:
     _progress(f"reading {args.series} ...")
     series = load_series(args.series)
     options = SignalOptions(cutoff_multiple=args.cutoff_multiple, reversal_band=args.reversal_band)
+    priors = make_priors(args.prior, series.table)
+    if args.shared:
+        priors = replace(priors, shared=tuple(args.shared))
     result = fit(
         series,
         chains=args.chains,
         draws=args.draws,
         warmup=args.warmup,
         seed=args.seed,
-        prior=args.prior,
+        prior=priors,
         signals=options,
         progress=_progress,
     )
@@ -105,6 +111,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--prior", choices=("generic", "physics"), default="generic",
                    help="generic weak priors, or centred by the series' table description")
+    p.add_argument("--shared", nargs="+", choices=("Me", "Ke", "Ce", "Fmu"), default=(), metavar="COEFFICIENT",
+                   help="coefficients the same in every test (no between-test variation), e.g. "
+                        "--shared Me when the moving mass cannot change between tests")
     p.add_argument("--cutoff-multiple", type=float, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
     p.add_argument("--reversal-band", type=float, default=0.2,

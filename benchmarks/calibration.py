@@ -13,10 +13,12 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from bayes_sst.inference import fit
+from bayes_sst.inference._priors import make_priors
 from bayes_sst.inference._summary import summarize
 from bayes_sst.signals import SignalOptions
 from bayes_sst.twin import random_series
@@ -38,6 +40,8 @@ def main():
                         help="signal cut-off multiple (default: the package default)")
     parser.add_argument("--signal", action="append", default=[], metavar="NAME=VALUE",
                         help="override a SignalOptions field, e.g. velocity_smoothing_s=0.0025")
+    parser.add_argument("--shared", nargs="*", default=None, metavar="COEFFICIENT",
+                        help="coefficients without between-test variation (default: the package default)")
     args = parser.parse_args()
     overrides = {}
     for item in args.signal:
@@ -50,7 +54,8 @@ def main():
         started = time.perf_counter()
         series, truth = one_series(seed)
         signals = SignalOptions(**overrides)
-        result = fit(series, seed=seed, signals=signals)
+        priors = make_priors("generic") if args.shared is None else replace(make_priors("generic"), shared=tuple(args.shared))
+        result = fit(series, seed=seed, signals=signals, prior=priors)
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"]}
         for name in NAMES:
@@ -80,7 +85,7 @@ def main():
     print("converged:", sum(r["converged"] for r in rows), "of", len(rows))
     if args.out:
         with open(args.out, "w") as fh:
-            json.dump({"signals": overrides, "coverage": coverage, "median_error": errors, "within_tolerance": within, "rows": rows}, fh, indent=1)
+            json.dump({"signals": overrides, "shared": args.shared, "coverage": coverage, "median_error": errors, "within_tolerance": within, "rows": rows}, fh, indent=1)
 
 
 if __name__ == "__main__":

@@ -74,3 +74,15 @@ def test_usage_errors_exit_nonzero(argv):
     with pytest.raises(SystemExit) as excinfo:
         main(argv)
     assert excinfo.value.code == 2
+
+
+def test_fit_shared_option_fixes_the_mass_between_tests(tmp_path):
+    series = tmp_path / "series"
+    assert main(["simulate", "--out", str(series), "--seed", "4"]) == 0
+    run = tmp_path / "run"
+    argv = ["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60", "--shared", "Me"]
+    assert main(argv) == 0
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["between_test_spread"]["Me"]["relative_sd_q95"] == 0.0
+    assert summary["between_test_spread"]["Ke"]["relative_sd_q95"] > 0.0
+    assert "shared by all tests" in (run / "summary.txt").read_text()

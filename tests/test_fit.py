@@ -97,3 +97,30 @@ def test_shipped_example_series_loads_and_is_small():
     series = load_series("data/sst-paper")
     assert len(series.tests) == 20
     assert series.n_samples > 30_000
+
+
+def test_shared_mass_has_no_between_test_spread_and_recovers_a_constant_mass():
+    """--shared Me: a campaign whose moving mass is the same in every test (the twin varies
+    only Ke, Ce, Fmu) fitted with Me shared: every test's Me is the population Me in every
+    draw, its between-test sd is exactly 0, and the population Me holds the truth."""
+    from dataclasses import replace
+
+    from bayes_sst.inference._priors import make_priors
+
+    series = simulate("sst-paper", seed=11, spread={"Ke": 0.02, "Ce": 0.02, "Fmu": 0.02})
+    priors = replace(make_priors("generic"), shared=("Me",))
+    result = fit(series, seed=5, prior=priors)
+    post = result.posterior
+    assert np.all(post["between_test_sd"].sel(coefficient="Me").values == 0.0)
+    np.testing.assert_allclose(post["Me_test"].values, post["Me"].values[..., None] * np.ones(post.sizes["test"]),
+                               rtol=1e-9)
+    assert post["between_test_sd"].sel(coefficient="Ke").values.mean() > 0.0
+    summary = summarize(result.tree)
+    assert summary["converged"], summary["warnings"]
+    truth = series.extra["truth"]["Me"]
+    low, high = np.quantile(post["Me"].values, [0.005, 0.995])
+    assert low <= truth <= high
+    assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.01
+    assert "Me     shared by all tests" in format_summary(summary)
+    with pytest.raises(ValueError, match="shared coefficients must be among"):
+        replace(priors, shared=("mass",)).varying_mask()

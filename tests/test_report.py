@@ -156,7 +156,8 @@ def test_band_coverage_in_report_json_matches_an_independent_recount(runs):
 
 def test_observed_energy_per_cycle_matches_the_recorded_rate_trapezoid(runs):
     """The report's loop area (8 samples a cycle, Fourier closed form) against the
-    trapezoid of F du over the steady cycles at the full recorded rate."""
+    trapezoid of F du over the steady cycles at the full recorded rate, both of the signals
+    the likelihood sees (force and displacement weighted by the reversal weight, then filtered)."""
     from bayes_sst.signals._filters import zero_phase_lowpass
 
     data = runs["report"].data
@@ -166,8 +167,10 @@ def test_observed_energy_per_cycle_matches_the_recorded_rate_trapezoid(runs):
     for row in data["tests"]:
         test, record = prepared[row["id"]], records[row["id"]]
         fs = record.sample_rate_hz
-        force = zero_phase_lowpass(record.F, test.cutoff_hz, fs)[test.window.start : test.window.stop]
-        u = zero_phase_lowpass(record.u, test.cutoff_hz, fs)[test.window.start : test.window.stop]
+        weight = test.weight_full
+        assert weight is not None and 0.0 < weight.mean() < 1.0  # the default treatment weights reversals out
+        force = zero_phase_lowpass(record.F * weight, test.cutoff_hz, fs)[test.window.start : test.window.stop]
+        u = zero_phase_lowpass(record.u * weight, test.cutoff_hz, fs)[test.window.start : test.window.stop]
         trapezoid = np.sum(0.5 * (force[1:] + force[:-1]) * np.diff(u)) / test.window.n_cycles
         assert row["statistics"]["energy"]["observed"] == pytest.approx(trapezoid, rel=0.03), row["id"]
         assert row["statistics"]["energy"]["observed"] > 0

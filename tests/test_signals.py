@@ -24,6 +24,8 @@ from bayes_sst.signals import (
     prepare_series,
     prepare_test,
     steady_cycles,
+    reversal_weight,
+    second_derivative,
     time_derivative,
     zero_phase_lowpass,
 )
@@ -132,6 +134,40 @@ def test_time_derivative_of_sine():
     # along an axis of a 2-D array
     d2 = time_derivative(np.stack([x, 2 * x], axis=1), fs, axis=0)
     np.testing.assert_allclose(d2[:, 1], 2 * d, atol=1e-12)
+
+
+def test_second_derivative_of_sine_is_fourth_order_accurate():
+    fs, f = 200.0, 6.0
+    omega, h = 2 * np.pi * f, 1.0 / fs
+    t = 0.0371 + np.arange(400) * h
+    x = np.sin(omega * t)
+    d2 = second_derivative(x, fs)
+    exact = -(omega**2) * x
+    # the five-point stencil scales a sine by (32 cos wh - 2 cos 2wh - 30)/(-12 (wh)^2) exactly
+    w = omega * h
+    gain = (32 * np.cos(w) - 2 * np.cos(2 * w) - 30) / (-12 * w**2)
+    np.testing.assert_allclose(d2[2:-2], gain * exact[2:-2], atol=1e-9 * omega**2)
+    assert abs(gain - 1) < 1e-4  # against 1.2 % for two second-order first derivatives
+    np.testing.assert_allclose(d2[2:-2], exact[2:-2], atol=1e-4 * omega**2)
+    two_gradients = np.gradient(np.gradient(x, h), h)
+    assert np.max(np.abs(two_gradients[2:-2] - exact[2:-2])) > 0.01 * omega**2
+
+
+def test_reversal_weight_is_zero_in_the_band_and_one_beyond_the_taper():
+    speed = np.linspace(-1.0, 1.0, 2001)
+    options = SignalOptions(reversal_band=0.2, reversal_taper=0.1)
+    w = reversal_weight(speed, 1.0, options)
+    assert np.all(w[np.abs(speed) <= 0.2 - 1e-9] == 0.0)
+    assert np.all(w[np.abs(speed) >= 0.3 + 1e-9] == 1.0)
+    ramp = (np.abs(speed) > 0.2 + 1e-6) & (np.abs(speed) < 0.3 - 1e-6)
+    assert np.all((w[ramp] > 0.0) & (w[ramp] < 1.0))
+    # raised cosine: one half at the middle of the ramp, monotonic in |v|
+    assert reversal_weight(np.array([0.25]), 1.0, options)[0] == pytest.approx(0.5)
+    order = np.argsort(np.abs(speed))
+    assert np.all(np.diff(w[order]) >= 0.0)
+    # switched off, or no band: all ones
+    assert np.all(reversal_weight(speed, 1.0, SignalOptions(reversal_window=False)) == 1.0)
+    assert np.all(reversal_weight(speed, 1.0, SignalOptions(reversal_band=0.0)) == 1.0)
 
 
 # --------------------------------------------------------------------------- cycles
@@ -277,7 +313,8 @@ def noisy():
 def test_prepare_test_trims_to_the_steady_window(clean):
     for record, truth in clean:
         f = record.spec.frequency_hz
-        prep = prepare_test(record)
+        # the plain low-pass (the reversal weight is tested on its own below)
+        prep = prepare_test(record, SignalOptions(reversal_window=False))
         assert prep.window.n_cycles == N_STEADY
         assert prep.id == record.spec.id and prep.file == record.spec.file
         assert prep.cutoff_hz == pytest.approx(4.0 * f)
@@ -393,6 +430,28 @@ def test_unfiltered_friction_regressor_would_bias_the_fit(clean):
     coef, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
     errors = np.abs(coef / np.array([TRUE[k] for k in ("Me", "Ke", "Ce", "Fmu")]) - 1)
     assert errors.max() > 0.01
+
+
+def _with_reversal_misfit(record, truth, band=0.15):
+    """The record with friction the model does not have, only where |v| < band*peak: a
+    holding force that ramps linearly across each reversal instead of the Coulomb step."""
+    v = truth["v"]
+    ramp = np.clip(v / (band * np.max(np.abs(v))), -1.0, 1.0)
+    columns = dict(record.columns)
+    columns["F"] = record.F + TRUE["Fmu"] * (ramp - np.sign(v))
+    return TestRecord(record.spec, columns)
+
+
+def test_reversal_weight_keeps_a_misfit_inside_the_band_out_of_the_fit(clean):
+    # A force the base model lacks, confined to the reversals: weighted out before the
+    # low-pass it leaves the fit exact; filtered plainly it leaks into the kept samples.
+    corrupted = [_with_reversal_misfit(record, truth) for record, truth in clean]
+    weighted = _pooled_least_squares([prepare_test(r) for r in corrupted])
+    for name, value in weighted.items():
+        assert value == pytest.approx(TRUE[name], rel=0.002), name
+    plain = _pooled_least_squares([prepare_test(r, SignalOptions(reversal_window=False)) for r in corrupted])
+    # measured: Ce +6.7 %, Fmu -4.8 %
+    assert plain["Ce"] / TRUE["Ce"] - 1 > 0.03 and plain["Fmu"] / TRUE["Fmu"] - 1 < -0.03
 
 
 # --------------------------------------------------------------------------- errors

@@ -161,6 +161,7 @@ def fit(
         spread_log_sd=priors.spread_log_sd,
         noise_loc=float(np.log(priors.noise_scale)),
         noise_log_sd=priors.noise_log_sd,
+        varying=jnp.asarray(priors.varying_mask()),
     )
     start_values = _initial_values(moments, priors.alpha_mean)
     kernel = NUTS(

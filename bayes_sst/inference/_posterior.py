@@ -29,6 +29,9 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     # numpy, draw by draw: the same equations as the sampler's, without an XLA compilation
     host_table = moment_table(moments, np)
     prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
+    varying = np.ones(4) if scaled.varying is None else np.asarray(scaled.varying, dtype=float)
+    spread = np.asarray(samples["spread"]) * varying  # a shared coefficient's spread is 0
+    flat["spread"] = np.reshape(spread, (chains * draws, 4))
     rng = np.random.default_rng(seed)
     normal_mu = rng.standard_normal((n_draws, 4))
     normal_theta = rng.standard_normal((n_draws, n_tests, 4))
@@ -56,7 +59,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     posterior["alpha"] = (("chain", "draw"), np.asarray(samples["alpha"]))
     posterior["between_test_sd"] = (
         ("chain", "draw", "coefficient"),
-        np.asarray(samples["spread"]) * scale,
+        spread * scale,
     )
     for k, name in enumerate(COEFFICIENTS):
         posterior[f"{name}_test"] = (("chain", "draw", "test"), shaped(theta[:, :, k]))

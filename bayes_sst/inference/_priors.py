@@ -72,6 +72,7 @@ class Priors:
     alpha_high: float = ALPHA_MAX
     spread_median: float = 0.03
     spread_log_sd: float = 1.0
+    shared: tuple[str, ...] = ()
     noise_scale: float = 0.05
     noise_log_sd: float = 2.0
     source: str = "generic"
@@ -80,13 +81,21 @@ class Priors:
     def centre_vector(self) -> np.ndarray:
         return np.array([self.centres[name] for name in COEFFICIENTS], dtype=float)
 
+    def varying_mask(self) -> np.ndarray:
+        """1.0 for the coefficients that vary between tests, 0.0 for the shared ones."""
+        unknown = set(self.shared) - set(COEFFICIENTS)
+        if unknown:
+            raise ValueError(f"shared coefficients must be among {COEFFICIENTS}, got {sorted(unknown)}")
+        return np.array([0.0 if name in self.shared else 1.0 for name in COEFFICIENTS])
+
     def describe(self) -> dict[str, Any]:
         return {
             "source": self.source,
             "centres": dict(self.centres),
             "relative_sd": self.relative_sd,
             "alpha": {"mean": self.alpha_mean, "sd": self.alpha_sd, "low": self.alpha_low, "high": self.alpha_high},
-            "between_test_spread": {"median": self.spread_median, "log_sd": self.spread_log_sd},
+            "between_test_spread": {"median": self.spread_median, "log_sd": self.spread_log_sd,
+                                    "shared": list(self.shared)},
             **({"relations": dict(self.relations)} if self.relations else {}),
         }
 

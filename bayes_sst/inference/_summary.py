@@ -47,8 +47,12 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
 
     posterior = tree["posterior"].to_dataset()
     stats = tree["sample_stats"].to_dataset()
-    r_hat = rhat(tree, var_names=list(POPULATION) + ["between_test_sd"])
-    ess_bulk = ess(tree, var_names=list(POPULATION) + ["between_test_sd"], method="bulk")
+    # a shared coefficient's between-test sd is identically 0: no R-hat or ESS to check
+    between = posterior["between_test_sd"]
+    varying = [k for k in range(between.sizes["coefficient"]) if np.any(between.isel(coefficient=k).values != 0.0)]
+    checked = posterior[list(POPULATION)].assign(between_test_sd=between.isel(coefficient=varying))
+    r_hat = rhat(checked)
+    ess_bulk = ess(checked, method="bulk")
     ess_tail = ess(tree, var_names=list(POPULATION), method="tail")
     parameters = {}
     for name in POPULATION:
@@ -65,7 +69,6 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
             "ess_tail": float(ess_tail[name]),
         }
     spread = {}
-    between = posterior["between_test_sd"]
     for k, name in enumerate(COEFFICIENTS):
         relative = (between.isel(coefficient=k) / np.abs(posterior[name])).values.ravel()
         spread[name] = {
@@ -205,6 +208,9 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
     lines.append("")
     lines.append("between-test spread (sd relative to the population value, mean [90% interval]):")
     for name, s in summary["between_test_spread"].items():
+        if s["relative_sd_q95"] == 0.0:
+            lines.append(f"  {name:<5}  shared by all tests (no between-test variation in the model)")
+            continue
         lines.append(
             f"  {name:<5}{100 * s['relative_sd_mean']:6.2f} %  [{100 * s['relative_sd_q05']:.2f}, {100 * s['relative_sd_q95']:.2f}] %"
         )

@@ -173,22 +173,6 @@ def p_value_figure(checks, statistics: dict) -> bytes:
     return png(fig)
 
 
-def _band_errorbars(ax, x, check, scale):
-    """Vertical 90 % and 50 % predictive intervals at each sample, measured points on top."""
-    for prob, colour, width in ((0.9, COLOURS["band90"], 4), (0.5, COLOURS["band50"], 2)):
-        low, high = check.bands[prob]
-        ax.vlines(x, low * scale, high * scale, color=colour, lw=width, zorder=1)
-
-
-def _points(ax, x, y, check, scale):
-    low, high = check.bands[0.9]
-    outside = (check.observed < low) | (check.observed > high)
-    kept = check.keep
-    ax.plot(x[kept & ~outside], y[kept & ~outside] * scale, ".", color=COLOURS["inside"], ms=4, zorder=3)
-    ax.plot(x[kept & outside], y[kept & outside] * scale, "x", color=COLOURS["outside"], ms=5, zorder=3)
-    ax.plot(x[~kept], y[~kept] * scale, "o", mfc="none", color="0.5", ms=4, zorder=3)
-
-
 def statistics_figure(checks, statistics: dict) -> bytes:
     """Per test and statistic: the replicated 50 % and 90 % intervals with the measured value
     marked, all relative to the replicated median (per cent), so tests of any size share an axis."""
@@ -259,30 +243,34 @@ class TestFigures:
         for ax in axes.ravel():
             for artist in list(ax.lines) + list(ax.collections):
                 artist.remove()
+        # only the fitted samples: inside the reversal band the force and the regressors are
+        # weighted out before filtering (signals.reversal_weight), so there is nothing to show
+        kept = check.keep
+        low90, high90 = (b[kept] for b in check.bands[0.9])
+        bands = {prob: tuple(b[kept] for b in check.bands[prob]) for prob in check.bands}
+        t, phase, observed, mean = check.t[kept], check.phase[kept], check.observed[kept], check.mean[kept]
         # phase order: the points of all cycles merge into one loop instead of a web
-        order = np.argsort(check.phase)
-        u_mm, v_mm = check.u * 1e3, check.v * 1e3
+        order = np.argsort(phase)
+        u_mm, v_mm = check.u[kept] * 1e3, check.v[kept] * 1e3
+        outside = (observed < low90) | (observed > high90)
         for ax, x in ((axes[0, 0], u_mm), (axes[0, 1], v_mm)):
-            _band_errorbars(ax, x, check, kN)
-            ax.plot(np.append(x[order], x[order[0]]), np.append(check.mean[order], check.mean[order[0]]) * kN,
-                    color=COLOURS["mean"], lw=0.8, zorder=2)
-            _points(ax, x, check.observed, check, kN)
+            for prob, colour, width in ((0.9, COLOURS["band90"], 4), (0.5, COLOURS["band50"], 2)):
+                ax.vlines(x, bands[prob][0] * kN, bands[prob][1] * kN, color=colour, lw=width, zorder=1)
+            ax.plot(x[order], mean[order] * kN, ".", color=COLOURS["mean"], ms=1.5, zorder=2)
+            ax.plot(x[~outside], observed[~outside] * kN, ".", color=COLOURS["inside"], ms=4, zorder=3)
+            ax.plot(x[outside], observed[outside] * kN, "x", color=COLOURS["outside"], ms=5, zorder=3)
         ax = axes[0, 2]
-        for prob, colour in ((0.9, COLOURS["band90"]), (0.5, COLOURS["band50"])):
-            low, high = check.bands[prob]
-            ax.fill_between(check.t, low * kN, high * kN, color=colour, lw=0)
-        ax.plot(check.t, check.mean * kN, color=COLOURS["mean"], lw=0.8)
-        _points(ax, check.t, check.observed, check, kN)
+        for prob, colour, width in ((0.9, COLOURS["band90"], 4), (0.5, COLOURS["band50"], 2)):
+            ax.vlines(t, bands[prob][0] * kN, bands[prob][1] * kN, color=colour, lw=width, zorder=1)
+        ax.plot(t[~outside], observed[~outside] * kN, ".", color=COLOURS["inside"], ms=4, zorder=3)
+        ax.plot(t[outside], observed[outside] * kN, "x", color=COLOURS["outside"], ms=5, zorder=3)
 
-        residual = (check.observed - check.mean) * kN
-        low, high = check.bands[0.9]
-        half = (high - low) / 2 * kN
-        for ax, x in ((axes[1, 0], check.t), (axes[1, 1], check.phase), (axes[1, 2], v_mm)):
+        residual = (observed - mean) * kN
+        half = (high90 - low90) / 2 * kN
+        for ax, x in ((axes[1, 0], t), (axes[1, 1], phase), (axes[1, 2], v_mm)):
             ax.vlines(x, -half, half, color=COLOURS["band90"], lw=3, zorder=1)
             ax.axhline(0, color="k", lw=0.6)
-            kept = check.keep
-            ax.plot(x[kept], residual[kept], ".", color=COLOURS["inside"], ms=4, zorder=3)
-            ax.plot(x[~kept], residual[~kept], "o", mfc="none", color="0.5", ms=4, zorder=3)
+            ax.plot(x, residual, ".", color=COLOURS["inside"], ms=4, zorder=3)
         phase_p = check.statistics.get("phase_residual", {}).get("p_value")
         axes[1, 1].set_title("" if phase_p is None else f"phase-locked residual: p = {phase_p:.3f}", fontsize=10)
         for ax in axes.ravel():
@@ -291,7 +279,7 @@ class TestFigures:
         self.suptitle.set_text(
             f"{check.test_id}: {check.kind} {check.frequency_hz:g} Hz x {1e3 * check.amplitude_m:g} mm;"
             f" {100 * check.coverage[0.9]:.0f} % in 90 % band, {100 * check.coverage[0.5]:.0f} % in 50 % band"
-            " (dots: fitted points, red x: outside 90 %, circles: reversal band, not fitted)")
+            " (fitted points only; red x: outside the 90 % band)")
         buffer = io.BytesIO()
         self.fig.savefig(buffer, format="png", dpi=DPI, pil_kwargs={"compress_level": PNG_COMPRESSION})
         return buffer.getvalue()

@@ -151,8 +151,10 @@ def _tests(data: dict, figures: dict) -> str:
         "<h2 id='predictive'>Posterior predictive, per test</h2>"
         "<p>Bands: central 50 % and 90 % of the replicated force (model with a posterior draw of the "
         "test's coefficients plus an AR(1) residual draw) at the samples the likelihood sees, after the "
-        "low-pass. Dots are measured points that enter the likelihood, crosses those outside the 90 % band, "
-        "open circles points in the velocity-reversal band (left out of the fit).</p>"
+        "low-pass. Dots are measured points that enter the likelihood, crosses those outside the 90 % band. "
+        "The velocity-reversal band is not shown: there the force and the regressors are weighted to zero "
+        "before the low-pass (the table rests and breaks away, and the force model does not hold), so the "
+        "filtered signals near it are the model's view of the test, not the raw recording.</p>"
         f"<nav class='tests'>Tests: {nav}</nav>"
     ]
     for t in data["tests"]:

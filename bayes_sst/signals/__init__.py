@@ -1,13 +1,14 @@
 """Signals: filtering, derivatives, steady-state cycles and the likelihood's sample set."""
 
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, steady_cycles
-from bayes_sst.signals._filters import lowpass_sos, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._prepare import (
     MIN_STEADY_CYCLES,
     PreparedTest,
     SignalOptions,
     prepare_series,
     prepare_test,
+    reversal_weight,
 )
 
 __all__ = [
@@ -19,6 +20,8 @@ __all__ = [
     "lowpass_sos",
     "prepare_series",
     "prepare_test",
+    "reversal_weight",
+    "second_derivative",
     "steady_cycles",
     "time_derivative",
     "zero_phase_lowpass",

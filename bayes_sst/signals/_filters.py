@@ -33,3 +33,24 @@ def zero_phase_lowpass(x, cutoff_hz: float, sample_rate_hz: float, *, axis: int 
 def time_derivative(x, sample_rate_hz: float, *, axis: int = -1):
     """dx/dt by second-order central differences (one-sided at the ends)."""
     return np.gradient(np.asarray(x, dtype=float), 1.0 / sample_rate_hz, axis=axis)
+
+
+def second_derivative(x, sample_rate_hz: float):
+    """d2x/dt2 by the fourth-order five-point stencil,
+
+        x''(t) = [-x(t - 2h) + 16 x(t - h) - 30 x(t) + 16 x(t + h) - x(t + 2h)] / (12 h^2),
+
+    (edges: the second-order three-point stencil; the first and last samples copy their
+    neighbour). A sine of frequency f gains (32 cos w - 2 cos 2w - 30)/(-12 w^2), w = 2 pi f h:
+    -0.008 % at 6 Hz sampled at 200 Hz, where two second-order first derivatives lose 1.2 %.
+    """
+    x = np.asarray(x, dtype=float)
+    h2 = (1.0 / sample_rate_hz) ** 2
+    out = np.empty_like(x)
+    if x.shape[-1] < 5:
+        return np.gradient(np.gradient(x, 1.0 / sample_rate_hz), 1.0 / sample_rate_hz)
+    out[2:-2] = (-x[:-4] + 16.0 * x[1:-3] - 30.0 * x[2:-2] + 16.0 * x[3:-1] - x[4:]) / (12.0 * h2)
+    out[1] = (x[0] - 2.0 * x[1] + x[2]) / h2
+    out[-2] = (x[-3] - 2.0 * x[-2] + x[-1]) / h2
+    out[0], out[-1] = out[1], out[-2]
+    return out
