@@ -124,3 +124,18 @@ def test_shared_mass_has_no_between_test_spread_and_recovers_a_constant_mass():
     assert "Me     shared by all tests" in format_summary(summary)
     with pytest.raises(ValueError, match="shared coefficients must be among"):
         replace(priors, shared=("mass",)).varying_mask()
+
+
+def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
+    import dataclasses
+    from types import SimpleNamespace
+
+    from bayes_sst.inference._predictive import run_signal_options
+    from bayes_sst.signals import SignalOptions
+
+    current = dataclasses.asdict(SignalOptions())
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).reversal_window
+    older = {k: v for k, v in current.items() if k not in ("reversal_window", "reversal_taper")}
+    options = run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)}))
+    assert options.reversal_window is False and options.cutoff_multiple == current["cutoff_multiple"]
+    assert run_signal_options(SimpleNamespace(attrs={})) == SignalOptions()

@@ -31,9 +31,17 @@ def response(test: PreparedTest) -> np.ndarray:
 
 
 def run_signal_options(tree) -> SignalOptions:
-    """The signal options a run was fitted with (defaults for runs that did not record them)."""
+    """The signal options a run was fitted with (defaults for runs that did not record them).
+
+    A run whose options predate the reversal weight (no "reversal_window" key) was fitted
+    without it, and is re-prepared without it.
+    """
     text = tree.attrs.get("signal_options", "")
-    return SignalOptions(**json.loads(text)) if text else SignalOptions()
+    if not text:
+        return SignalOptions()
+    recorded = json.loads(text)
+    recorded.setdefault("reversal_window", False)
+    return SignalOptions(**recorded)
 
 
 def run_prepared(tree, series=None) -> list[PreparedTest]:
