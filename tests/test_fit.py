@@ -139,3 +139,28 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     options = run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)}))
     assert options.reversal_window is False and options.cutoff_multiple == current["cutoff_multiple"]
     assert run_signal_options(SimpleNamespace(attrs={})) == SignalOptions()
+
+
+def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_a_shared_mass():
+    """With only white force noise the accelerometer's noise (times Me) dominates the slow sine
+    tests' residual, and their per-test Me slides along the Me-Ke ridge toward 0 (population
+    Me -43 %, its between-test sd 73 %). fit must notice the implausible mass spread, refit
+    with Me shared (this series' mass is the same in every test) and say so in the summary;
+    without the automatic refit the failure is visible and flagged."""
+    from bayes_sst.twin import SensorNoise
+
+    series = simulate("sst-paper", seed=1, spread={"Ke": 0.03, "Ce": 0.03, "Fmu": 0.03},
+                      noise=SensorNoise(F_colored=0.0))
+    truth = series.extra["truth"]["Me"]
+    raw = summarize(fit(series, seed=1, auto_share_mass=False).tree)
+    assert raw["between_test_spread"]["Me"]["relative_sd_mean"] > 0.10
+    assert raw["parameters"]["Me"]["mean"] < 0.9 * truth  # the failure itself
+    assert any("moving mass varies" in w and "--shared Me" in w for w in raw["warnings"])
+
+    result = fit(series, seed=1)
+    assert "Me" in result.priors.shared and "mass_refit" in result.tree.attrs
+    summary = summarize(result.tree)
+    assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.01
+    assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"]
+    assert any(w.startswith("Me is shared by all tests") for w in summary["warnings"])
+    assert summary["between_test_spread"]["Me"]["relative_sd_q95"] == 0.0
