@@ -10,7 +10,7 @@ from typing import Any, Callable
 import numpy as np
 
 from bayes_sst.inference._priors import Priors, make_priors
-from bayes_sst.inference._summary import IMPLAUSIBLE_MASS_SPREAD
+from bayes_sst.inference._summary import IMPLAUSIBLE_MASS_SPREAD, relative_between_test_sd
 from bayes_sst.inference._statistics import LaggedMoments, lagged_moments
 from bayes_sst.io import Series
 from bayes_sst.signals import PreparedTest, SignalOptions, prepare_series
@@ -78,13 +78,6 @@ def _initial_values(moments: LaggedMoments, alpha: float):
         "phi": jnp.asarray(phis),
         "sigma": jnp.asarray(sigmas),
     }
-
-
-def _relative_mass_spread(tree) -> float:
-    """Posterior mean of the between-test sd of Me relative to the population Me."""
-    post = tree["posterior"]
-    relative = post["between_test_sd"].sel(coefficient="Me") / np.abs(post["Me"])
-    return float(relative.mean())
 
 
 def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, alpha_sd: float = 0.03):
@@ -216,24 +209,22 @@ def fit(
         )
         samples = jax.device_get(mcmc.get_samples(group_by_chain=True))
         extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
-        timings["sampling"] = time.perf_counter() - start
-        _say(progress, f"sampled in {timings['sampling']:.1f} s (compilation included)")
+        seconds = time.perf_counter() - start
+        timings["sampling"] = timings.get("sampling", 0.0) + seconds
+        _say(progress, f"sampled in {seconds:.1f} s (compilation included)")
 
         start = time.perf_counter()
         tree = build_tree(seed + 1, samples, extra, scaled, moments, prepared, priors, settings, series, signals)
-        timings["posterior"] = time.perf_counter() - start
+        timings["posterior"] = timings.get("posterior", 0.0) + time.perf_counter() - start
         return tree
 
     tree = sample(priors)
-    mass_spread = _relative_mass_spread(tree)
+    mass_spread = float(relative_between_test_sd(tree["posterior"], "Me").mean())
     if auto_share_mass and "Me" not in priors.shared and mass_spread > IMPLAUSIBLE_MASS_SPREAD:
         _say(progress, f"the moving mass came out varying by {100 * mass_spread:.0f} % between tests, which a "
                        "table does not do; refitting with Me shared by all tests ...")
-        first = dict(timings)
         priors = replace(priors, shared=tuple(priors.shared) + ("Me",))
         tree = sample(priors)
-        timings["sampling"] += first["sampling"]
-        timings["posterior"] += first["posterior"]
         tree.attrs["mass_refit"] = json.dumps({"first_fit_mass_spread": mass_spread,
                                                "threshold": IMPLAUSIBLE_MASS_SPREAD})
     return FitResult(

@@ -26,7 +26,7 @@ class ScaledPriors(NamedTuple):
     spread_log_sd: float
     noise_loc: float
     noise_log_sd: float
-    varying: jnp.ndarray | None = None  # (4,) 1.0 varies between tests, 0.0 shared
+    varying: jnp.ndarray  # (4,) 1.0 varies between tests, 0.0 shared
 
 
 def table_force_model(table: MomentTable, priors: ScaledPriors):
@@ -44,8 +44,7 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
     with numpyro.plate("test", n_tests):
         phi = numpyro.sample("phi", dist.Uniform(-PHI_BOUND, PHI_BOUND))
         sigma = numpyro.sample("sigma", dist.LogNormal(priors.noise_loc, priors.noise_log_sd))
-    rho = spread if priors.varying is None else spread * priors.varying
     numpyro.factor(
         "force",
-        collapsed_log_likelihood(table, alpha, rho, phi, sigma, priors.mean, priors.sd),
+        collapsed_log_likelihood(table, alpha, spread * priors.varying, phi, sigma, priors.mean, priors.sd),
     )

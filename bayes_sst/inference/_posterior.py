@@ -29,8 +29,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     # numpy, draw by draw: the same equations as the sampler's, without an XLA compilation
     host_table = moment_table(moments, np)
     prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
-    varying = np.ones(4) if scaled.varying is None else np.asarray(scaled.varying, dtype=float)
-    spread = np.asarray(samples["spread"]) * varying  # a shared coefficient's spread is 0
+    spread = np.asarray(samples["spread"]) * np.asarray(scaled.varying)  # a shared coefficient's spread is 0
     flat["spread"] = np.reshape(spread, (chains * draws, 4))
     rng = np.random.default_rng(seed)
     normal_mu = rng.standard_normal((n_draws, 4))

@@ -27,6 +27,11 @@ IMPLAUSIBLE_MASS_SPREAD = 0.10
 
 
 
+def relative_between_test_sd(posterior, name: str):
+    """Between-test sd of coefficient `name` relative to its population value, per draw."""
+    return posterior["between_test_sd"].sel(coefficient=name) / np.abs(posterior[name])
+
+
 def _tree_priors(tree) -> dict | None:
     """The fit's prior settings from tree.attrs["priors"] (a JSON string), or None."""
     raw = getattr(tree, "attrs", {}).get("priors")
@@ -72,8 +77,8 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
             "ess_tail": float(ess_tail[name]),
         }
     spread = {}
-    for k, name in enumerate(COEFFICIENTS):
-        relative = (between.isel(coefficient=k) / np.abs(posterior[name])).values.ravel()
+    for name in COEFFICIENTS:
+        relative = relative_between_test_sd(posterior, name).values.ravel()
         spread[name] = {
             "relative_sd_mean": float(relative.mean()),
             "relative_sd_q05": float(np.quantile(relative, 0.05)),

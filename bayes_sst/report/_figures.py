@@ -246,24 +246,18 @@ class TestFigures:
         # only the fitted samples: inside the reversal band the force and the regressors are
         # weighted out before filtering (signals.reversal_weight), so there is nothing to show
         kept = check.keep
-        low90, high90 = (b[kept] for b in check.bands[0.9])
         bands = {prob: tuple(b[kept] for b in check.bands[prob]) for prob in check.bands}
         t, phase, observed, mean = check.t[kept], check.phase[kept], check.observed[kept], check.mean[kept]
-        # phase order: the points of all cycles merge into one loop instead of a web
-        order = np.argsort(phase)
         u_mm, v_mm = check.u[kept] * 1e3, check.v[kept] * 1e3
+        low90, high90 = bands[0.9]
         outside = (observed < low90) | (observed > high90)
-        for ax, x in ((axes[0, 0], u_mm), (axes[0, 1], v_mm)):
+        for ax, x, loop in ((axes[0, 0], u_mm, True), (axes[0, 1], v_mm, True), (axes[0, 2], t, False)):
             for prob, colour, width in ((0.9, COLOURS["band90"], 4), (0.5, COLOURS["band50"], 2)):
                 ax.vlines(x, bands[prob][0] * kN, bands[prob][1] * kN, color=colour, lw=width, zorder=1)
-            ax.plot(x[order], mean[order] * kN, ".", color=COLOURS["mean"], ms=1.5, zorder=2)
+            if loop:
+                ax.plot(x, mean * kN, ".", color=COLOURS["mean"], ms=1.5, zorder=2)
             ax.plot(x[~outside], observed[~outside] * kN, ".", color=COLOURS["inside"], ms=4, zorder=3)
             ax.plot(x[outside], observed[outside] * kN, "x", color=COLOURS["outside"], ms=5, zorder=3)
-        ax = axes[0, 2]
-        for prob, colour, width in ((0.9, COLOURS["band90"], 4), (0.5, COLOURS["band50"], 2)):
-            ax.vlines(t, bands[prob][0] * kN, bands[prob][1] * kN, color=colour, lw=width, zorder=1)
-        ax.plot(t[~outside], observed[~outside] * kN, ".", color=COLOURS["inside"], ms=4, zorder=3)
-        ax.plot(t[outside], observed[outside] * kN, "x", color=COLOURS["outside"], ms=5, zorder=3)
 
         residual = (observed - mean) * kN
         half = (high90 - low90) / 2 * kN

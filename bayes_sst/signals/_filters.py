@@ -45,10 +45,10 @@ def second_derivative(x, sample_rate_hz: float):
     -0.008 % at 6 Hz sampled at 200 Hz, where two second-order first derivatives lose 1.2 %.
     """
     x = np.asarray(x, dtype=float)
-    h2 = (1.0 / sample_rate_hz) ** 2
-    out = np.empty_like(x)
     if x.shape[-1] < 5:
         return np.gradient(np.gradient(x, 1.0 / sample_rate_hz), 1.0 / sample_rate_hz)
+    h2 = (1.0 / sample_rate_hz) ** 2
+    out = np.empty_like(x)
     out[2:-2] = (-x[:-4] + 16.0 * x[1:-3] - 30.0 * x[2:-2] + 16.0 * x[3:-1] - x[4:]) / (12.0 * h2)
     out[1] = (x[0] - 2.0 * x[1] + x[2]) / h2
     out[-2] = (x[-3] - 2.0 * x[-2] + x[-1]) / h2

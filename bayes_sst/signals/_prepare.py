@@ -215,9 +215,10 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     peak_speed = float(np.percentile(speed, 99.5))
     keep = np.abs(v_f[index]) >= options.reversal_band * peak_speed
     weight = reversal_weight(v_f, peak_speed, options)
+    weighted = not np.all(weight == 1.0)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
-    u_model = zero_phase_lowpass(record.u * weight, cutoff, fs)
+    u_model = zero_phase_lowpass(record.u * weight, cutoff, fs) if weighted else u_f
     a_f = zero_phase_lowpass(np.asarray(a_raw, dtype=float) * weight, cutoff, fs)
 
     return PreparedTest(
@@ -240,7 +241,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         a=a_f[index],
         keep=keep,
         velocity_full=v_f,
-        weight_full=weight,
+        weight_full=weight if weighted else None,
     )
 
 
