@@ -11,8 +11,9 @@ from bayes_sst.inference import _smalllinalg as sl
 from bayes_sst.inference._collapsed import (
     MomentTable,
     collapsed_log_likelihood,
+    compact_table,
     draw_coefficients,
-    moments_at,
+    whitened_at,
     whitened_moments,
 )
 
@@ -24,12 +25,8 @@ def _random_problem(rng, n_tests=3, n_samples=60):
     for z in zs:
         now, before = z[:, 1:], z[:, :-1]
         moments.append(np.stack([now @ now.T, now @ before.T, before @ before.T]))
-    moments = np.moveaxis(np.stack(moments), 0, -1)[None]  # (1, 3, 5, 5, J): tests last
-    grid = np.concatenate([moments, moments], axis=0)  # alpha-independent for this check
-    table = MomentTable(
-        moments=jnp.asarray(grid), slopes=jnp.zeros_like(jnp.asarray(grid)),
-        n_pairs=jnp.full(n_tests, float(n_samples - 1)), alpha_start=0.0, alpha_step=1.0,
-    )
+    grid = np.stack([np.stack(moments)] * 2, axis=1)  # (J, 2, 3, 5, 5): alpha-independent here
+    table = compact_table(grid, np.zeros_like(grid), np.full(n_tests, float(n_samples - 1)), np.array([0.0, 1.0]))
     return zs, table
 
 
@@ -95,15 +92,15 @@ def test_collapsed_likelihood_numpy_and_jax_agree_and_gradient_matches_differenc
         assert grad[k] == pytest.approx(fd, rel=1e-5, abs=1e-6)
 
 
-def test_hermite_interpolation_of_moments_matches_direct_computation():
-    """Moments of (v, |v|^alpha sign v) tabulated on a 0.025 grid, read off between nodes."""
+def test_hermite_interpolation_of_whitened_moments_matches_direct_computation():
+    """z = (v, v^2, v^3, |v|^alpha sign v, sign v), moments tabulated on a 0.025 grid; the
+    whitened moments read off between nodes against a direct computation at that alpha."""
     rng = np.random.default_rng(3)
     v = rng.uniform(-1.0, 1.0, 400)
     grid = np.arange(0.05, 1.96, 0.025)
 
     def z_of(alpha):
-        c = np.abs(v) ** alpha * np.sign(v)
-        return np.stack([v, c, c, c, c])
+        return np.stack([v, v**2, v**3, np.abs(v) ** alpha * np.sign(v), np.sign(v)])
 
     def lag_moments(z, dz=None):
         now, before = z[:, 1:], z[:, :-1]
@@ -113,16 +110,22 @@ def test_hermite_interpolation_of_moments_matches_direct_computation():
         return np.stack([dnow @ now.T + now @ dnow.T, dnow @ before.T + now @ dbefore.T,
                          dbefore @ before.T + before @ dbefore.T])
 
-    moments = np.stack([lag_moments(z_of(a)) for a in grid])[..., None]
+    moments = np.stack([lag_moments(z_of(a)) for a in grid])[None]
     slopes = []
     for a in grid:
-        dc = np.abs(v) ** a * np.log(np.abs(v)) * np.sign(v)
-        slopes.append(lag_moments(z_of(a), np.stack([np.zeros_like(v), dc, dc, dc, dc])))
-    table = MomentTable(jnp.asarray(moments), jnp.asarray(np.stack(slopes)[..., None]), jnp.ones(1), 0.05, 0.025)
-    for alpha in (0.3137, 0.5, 0.777, 1.4321):
-        exact = lag_moments(z_of(alpha))
-        interpolated = np.asarray(moments_at(table, alpha))[..., 0]
+        dz = np.zeros((5, len(v)))
+        dz[3] = np.abs(v) ** a * np.log(np.abs(v)) * np.sign(v)
+        slopes.append(lag_moments(z_of(a), dz))
+    table = compact_table(moments, np.stack(slopes)[None], np.ones(1), grid)
+    for alpha, phi in ((0.3137, 0.0), (0.5, 0.4), (0.777, -0.3), (1.4321, 0.9)):
+        z = z_of(alpha)
+        w = z[:, 1:] - phi * z[:, :-1]
+        exact = w @ w.T
+        interpolated = np.asarray(whitened_at(table, alpha, jnp.asarray([phi])))[..., 0]
         assert np.max(np.abs(interpolated - exact)) / np.max(np.abs(exact)) < 1e-7
+        host = np.asarray(whitened_at(table._replace(constant=np.asarray(table.constant), cells=np.asarray(table.cells)),
+                                      alpha, np.asarray([phi]), xp=np))[..., 0]
+        assert np.allclose(host, interpolated, rtol=1e-12, atol=1e-12)
 
 
 def test_whitening_is_the_moment_matrix_of_the_ar1_innovations():

@@ -32,6 +32,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 import bayes_sst._jaxconfig  # noqa: F401  (float64 before any array)
 from bayes_sst.inference import _smalllinalg as sl
@@ -39,27 +40,56 @@ from bayes_sst.inference import _smalllinalg as sl
 LOG_2PI = 1.8378770664093453
 
 
-class MomentTable(NamedTuple):
-    """Grids of lagged moments and their alpha-slopes, (G, 3, 5, 5, J): tests on the last axis,
-    so that each matrix entry is one contiguous vector over tests."""
+DAMPING = 3  # index of the damping column in z = (y, a, u, |v|^alpha sign v, sign v)
 
-    moments: jax.Array
-    slopes: jax.Array
+
+class MomentTable(NamedTuple):
+    """The lagged moments in the form the likelihood reads them, tests on the last axis.
+
+    Whitening needs only the symmetric combinations S = (M0, M1 + M1', M2), and only row and
+    column DAMPING of them depend on alpha; the rest is stored once:
+
+    constant : (3, 5, 5, J) S with row and column DAMPING zeroed;
+    cells : (G-1, 4, 3, 5, J) per grid interval g, row DAMPING of S as the four cubic-Hermite
+        pieces [S_g, step S'_g, S_(g+1), step S'_(g+1)], so that one dynamic slice and two small
+        contractions give the whitened moments at any alpha (about a third of the cost of
+        interpolating and whitening the full matrices, gradient included).
+    """
+
+    constant: jax.Array
+    cells: jax.Array
     n_pairs: jax.Array  # (J,)
     alpha_start: float
     alpha_step: float
 
 
-def moment_table(lagged, xp=jnp) -> MomentTable:
-    """MomentTable from a LaggedMoments (whose arrays are (J, G, 3, 5, 5))."""
-    order = (1, 2, 3, 4, 0)
+def compact_table(moments, slopes, n_pairs, alpha_grid, xp=jnp) -> MomentTable:
+    """MomentTable from lagged moments and their alpha-slopes laid out (J, G, 3, 5, 5)."""
+    moments, slopes = np.asarray(moments, dtype=float), np.asarray(slopes, dtype=float)
+
+    def symmetric(m):
+        return np.stack([m[..., 0, :, :], m[..., 1, :, :] + np.swapaxes(m[..., 1, :, :], -1, -2), m[..., 2, :, :]], axis=-3)
+
+    alpha_grid = np.asarray(alpha_grid, dtype=float)
+    step = float(alpha_grid[1] - alpha_grid[0])
+    values, derivatives = symmetric(moments), symmetric(slopes)
+    constant = values[:, 0].copy()
+    constant[..., DAMPING, :] = 0.0
+    constant[..., :, DAMPING] = 0.0
+    row, row_slope = values[..., DAMPING, :], step * derivatives[..., DAMPING, :]  # (J, G, 3, 5)
+    cells = np.stack([row[:, :-1], row_slope[:, :-1], row[:, 1:], row_slope[:, 1:]], axis=2)
     return MomentTable(
-        moments=xp.asarray(lagged.moments.transpose(order)),
-        slopes=xp.asarray(lagged.slopes.transpose(order)),
-        n_pairs=xp.asarray(lagged.n_pairs),
-        alpha_start=float(lagged.alpha_grid[0]),
-        alpha_step=float(lagged.alpha_grid[1] - lagged.alpha_grid[0]),
+        constant=xp.asarray(np.moveaxis(constant, 0, -1)),
+        cells=xp.asarray(np.moveaxis(cells, 0, -1)),
+        n_pairs=xp.asarray(np.asarray(n_pairs, dtype=float)),
+        alpha_start=float(alpha_grid[0]),
+        alpha_step=step,
     )
+
+
+def moment_table(lagged, xp=jnp) -> MomentTable:
+    """MomentTable from a LaggedMoments."""
+    return compact_table(lagged.moments, lagged.slopes, lagged.n_pairs, lagged.alpha_grid, xp)
 
 
 class TestTerms(NamedTuple):
@@ -75,34 +105,35 @@ class TestTerms(NamedTuple):
     B_chol: jax.Array  # (4, 4, J)
 
 
-def moments_at(table: MomentTable, alpha, xp=jnp):
-    """Cubic Hermite interpolation of the tabulated moments at alpha, (3, 5, 5, J).
-
-    With s = (alpha - alpha_g)/step in [0, 1):
-    M(alpha) = h00 M_g + h10 step M'_g + h01 M_(g+1) + h11 step M'_(g+1).
-    """
-    n_grid = table.moments.shape[0]
+def hermite_weights(table: MomentTable, alpha, xp=jnp):
+    """Grid interval g and the cubic-Hermite weights at alpha: with s = (alpha - alpha_g)/step,
+    M(alpha) = h00 M_g + h10 step M'_g + h01 M_(g+1) + h11 step M'_(g+1)."""
+    n_cells = table.cells.shape[0]
     position = (alpha - table.alpha_start) / table.alpha_step
-    g = xp.clip(xp.floor(position).astype(xp.int32), 0, n_grid - 2)
+    g = xp.clip(xp.floor(position).astype(xp.int32), 0, n_cells - 1)
     s = position - g
     s2, s3 = s * s, s * s * s
-    h00 = 2 * s3 - 3 * s2 + 1
-    h10 = s3 - 2 * s2 + s
-    h01 = -2 * s3 + 3 * s2
-    h11 = s3 - s2
-    step = table.alpha_step
-    return (
-        h00 * table.moments[g]
-        + h10 * step * table.slopes[g]
-        + h01 * table.moments[g + 1]
-        + h11 * step * table.slopes[g + 1]
-    )
+    return g, xp.stack([2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2])
 
 
 def whitened_moments(moments, phi, xp=jnp):
     """W_j = M0 - phi (M1 + M1') + phi^2 M2: moments of z_t - phi z_(t-1), (5, 5, J)."""
     m0, m1, m2 = moments[0], moments[1], moments[2]
     return m0 - phi * (m1 + xp.swapaxes(m1, 0, 1)) + phi * phi * m2
+
+
+def whitened_at(table: MomentTable, alpha, phi, xp=jnp):
+    """W_j(alpha, phi_j) = M0 - phi_j (M1 + M1') + phi_j^2 M2 at alpha, (5, 5, J), the
+    damping row and column interpolated (see MomentTable)."""
+    g, weights = hermite_weights(table, alpha, xp)
+    lag_weights = xp.stack([xp.ones_like(phi), -phi, phi * phi])  # (3, J)
+    row = xp.einsum("k,klmj->lmj", weights, table.cells[g])
+    row = xp.sum(row * lag_weights[:, None, :], axis=0)  # (5, J)
+    base = xp.sum(table.constant * lag_weights[:, None, None, :], axis=0)
+    unit = np.zeros(5)
+    unit[DAMPING] = 1.0
+    e_row, e_col = unit[:, None, None], unit[None, :, None]
+    return base + e_row * row[None, :, :] + e_col * row[:, None, :] - e_row * e_col * row[DAMPING]
 
 
 def test_terms(whitened, n_pairs, sigma, rho, xp=jnp) -> TestTerms:
@@ -140,9 +171,7 @@ def population_posterior(terms: TestTerms, prior_mean, prior_sd, xp=jnp):
 
 
 def _terms(table, alpha, rho, phi, sigma, xp):
-    return test_terms(
-        whitened_moments(moments_at(table, alpha, xp), phi, xp), table.n_pairs, sigma, rho, xp
-    )
+    return test_terms(whitened_at(table, alpha, phi, xp), table.n_pairs, sigma, rho, xp)
 
 
 def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp):

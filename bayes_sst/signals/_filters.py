@@ -2,21 +2,29 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy import signal as _sp_signal
 
 BUTTERWORTH_ORDER = 4
 
 
+@lru_cache(maxsize=256)
+def _butterworth(order: int, relative_cutoff: float) -> np.ndarray:
+    return _sp_signal.butter(order, relative_cutoff, btype="low", output="sos")
+
+
 def lowpass_sos(cutoff_hz: float, sample_rate_hz: float, order: int = BUTTERWORTH_ORDER):
-    """Second-order sections of a Butterworth low-pass; the cut-off must lie below Nyquist."""
+    """Second-order sections of a Butterworth low-pass; the cut-off must lie below Nyquist.
+    (Designs are cached: a series filters each test's regressors hundreds of times.)"""
     nyquist = 0.5 * sample_rate_hz
     if not 0.0 < cutoff_hz < nyquist:
         raise ValueError(
             f"low-pass cut-off {cutoff_hz:.4g} Hz must lie between 0 and the Nyquist "
             f"frequency {nyquist:.4g} Hz"
         )
-    return _sp_signal.butter(order, cutoff_hz / nyquist, btype="low", output="sos")
+    return _butterworth(int(order), float(cutoff_hz / nyquist)).copy()  # the cached one stays intact
 
 
 def zero_phase_lowpass(x, cutoff_hz: float, sample_rate_hz: float, *, axis: int = -1):
