@@ -183,7 +183,8 @@ def test_engine_likelihood_equals_the_fits_collapsed_likelihood(example_tests):
 
     centres = np.array([10_000.0, 1e6, 20_000.0, 10_000.0])
     lm = lagged_moments(example_tests, centres)
-    table = moment_table(lm, np)  # the fit's equations, evaluated with numpy (no compilation)
+    # the fit's equations, evaluated with numpy (no compilation), without the fit's noise floor
+    table = moment_table(lm, np)._replace(noise_floor=0.0)
     prior_mean_fit, prior_sd_fit = np.ones(4), np.ones(4)
     scale = np.array([13_000.0, 7e5, 3e4, 1.2e4])
     force_scale = 5e4
@@ -206,7 +207,9 @@ def test_engine_likelihood_equals_the_fits_collapsed_likelihood(example_tests):
             total_c, total_h, total_H = total_c + t.c, total_h + t.h, total_H + t.H
         _, _, loglik = population(total_c, total_h, total_H, centres / scale, centres / scale)
         mine.append(float(loglik))
-    assert mine[0] - mine[1] == pytest.approx(fit_values[0] - fit_values[1], rel=1e-7, abs=1e-6)
+    # the fit interpolates the damping column between alpha nodes, the engine its moments: both
+    # cubic Hermite, equal to O(step^4)
+    assert mine[0] - mine[1] == pytest.approx(fit_values[0] - fit_values[1], rel=1e-7, abs=1e-3)
 
 
 def test_candidate_signals_match_the_virtual_table(example_tests):

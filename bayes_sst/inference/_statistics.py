@@ -10,9 +10,16 @@ needs only the 5x5 moments of z_t = (y_t, x_t) at lags 0 and 1 over consecutive 
     M0 = sum z_t z_t',  M1 = sum z_t z_(t-1)',  M2 = sum z_(t-1) z_(t-1)'
     sum_t (z_t - phi z_(t-1))(z_t - phi z_(t-1))' = M0 - phi (M1 + M1') + phi^2 M2
 
-The moments depend on alpha only through the damping column; they are tabulated with their
-exact alpha-derivative on a grid and interpolated by cubic Hermite polynomials, so one
-likelihood evaluation costs a few 5x5 operations per test, whatever the number of samples.
+The moments depend on alpha only through the damping column d(alpha). The likelihood
+interpolates that COLUMN between grid nodes by cubic Hermite polynomials,
+d(alpha) = sum_k w_k(alpha) K_k with K = (d_g, step d'_g, d_(g+1), step d'_(g+1)), and reads its
+moments from the tabulated moments of the four basis columns with each other and with the
+other columns (damping_cells). The interpolated moment matrix is then exactly the moment
+matrix of a set of columns, positive semidefinite at every alpha. (Interpolating the moments
+themselves is not: a triangle test's damping and friction columns are collinear to 1e-9, and
+the interpolation error made its whitened moment matrix indefinite, which at low force noise
+sent the population draws to many times the truth.) One likelihood evaluation costs a few 5x5
+operations per test, whatever the number of samples.
 """
 
 from __future__ import annotations
@@ -36,6 +43,9 @@ class LaggedMoments:
     """Per-test lagged moments on an alpha grid, in scaled units.
 
     moments, slopes : (n_tests, n_grid, 3, 5, 5): M0, M1, M2 and their d/dalpha.
+    damping_cross, damping_gram : (n_tests, n_grid - 1, 3, 4, 4): per grid interval, the lag
+        sums (see damping_cells) of the damping column's four Hermite basis columns with the
+        other columns (y, a, u, sign) and with each other.
     n_pairs : (n_tests,) consecutive kept sample pairs entering the likelihood.
     alpha_grid : (n_grid,) uniformly spaced.
     coefficient_scale : (4,) theta = coefficient_scale * theta_scaled (kg, N/m, N/(m/s)^a, N).
@@ -44,6 +54,8 @@ class LaggedMoments:
 
     moments: np.ndarray
     slopes: np.ndarray
+    damping_cross: np.ndarray
+    damping_gram: np.ndarray
     n_pairs: np.ndarray
     alpha_grid: np.ndarray
     coefficient_scale: np.ndarray
@@ -112,6 +124,34 @@ def response_moments(y: np.ndarray, X: np.ndarray, dX: np.ndarray, valid: np.nda
     return moments, slopes
 
 
+DAMPING_COLUMN = 2  # of X = (a, u, damping, sign)
+OTHER_COLUMNS = (0, 1, 3)
+
+
+def symmetric_lag_sums(m: np.ndarray, m_transposed_lag1: np.ndarray | None = None) -> np.ndarray:
+    """(S0, S1, S2) = (M0, M1 + M1', M2) from pair moments (..., 3, k, l); the whitened moments
+    are S0 - phi S1 + phi^2 S2. For cross moments of two different column sets pass the lag-1
+    moment of the reverse pair (sum q_t p_(t-1)'), whose transpose completes S1."""
+    lag1 = m[..., 1, :, :]
+    other = np.swapaxes(lag1 if m_transposed_lag1 is None else m_transposed_lag1, -1, -2)
+    return np.stack([m[..., 0, :, :], lag1 + other, m[..., 2, :, :]], axis=-3)
+
+
+def damping_cells(y: np.ndarray, X: np.ndarray, dX: np.ndarray, valid: np.ndarray, step: float):
+    """Lag sums of the damping column's Hermite basis per grid interval, for the interpolation
+    d(alpha) = sum_k w_k K_k, K = (d_g, step d'_g, d_(g+1), step d'_(g+1)):
+
+    cross (G-1, 3, 4, 4): S_l(K_k, o) for o = (y, a, u, sign);  gram (G-1, 3, 4, 4): S_l(K_k, K_m);
+    S = (M0, M1 + M1', M2) as in symmetric_lag_sums.
+    """
+    d, dd = X[:, DAMPING_COLUMN], step * dX[:, DAMPING_COLUMN]
+    basis = np.stack([d[:-1], dd[:-1], d[1:], dd[1:]], axis=1)  # (G-1, 4, n)
+    others = np.concatenate([y[None], X[0, list(OTHER_COLUMNS)]], axis=0)  # (4, n)
+    cross = symmetric_lag_sums(pair_moments(basis, others, valid), pair_moments(others, basis, valid)[..., 1, :, :])
+    gram = symmetric_lag_sums(pair_moments(basis, basis, valid))
+    return cross, gram
+
+
 def lagged_moments(
     tests: list[PreparedTest],
     coefficient_scale,
@@ -126,19 +166,25 @@ def lagged_moments(
         np.sqrt(np.mean(np.concatenate([(t.F - t.payload_kg * t.a)[t.keep] ** 2 for t in tests])))
     )
 
+    step = float(alpha_grid[1] - alpha_grid[0])
+
     def one_test(test):
         X, dX, valid = scaled_regressors(test, alpha_grid, coefficient_scale, force_scale)
-        moments, slopes = response_moments((test.F - test.payload_kg * test.a) / force_scale, X, dX, valid)
-        return moments, slopes, valid.sum()
+        y = (test.F - test.payload_kg * test.a) / force_scale
+        moments, slopes = response_moments(y, X, dX, valid)
+        cross, gram = damping_cells(y, X, dX, valid, step)
+        return moments, slopes, cross, gram, valid.sum()
 
     # the filtering of the damping regressors dominates and runs in scipy and numpy with the
     # GIL released: threads over tests halve the preparation of a 200-test series on 2 cores
     with ThreadPoolExecutor(max_workers=max(1, min(len(os.sched_getaffinity(0)), len(tests)))) as pool:
         per_test = list(pool.map(one_test, tests))
-    all_moments, all_slopes, n_pairs = zip(*per_test)
+    all_moments, all_slopes, all_cross, all_gram, n_pairs = zip(*per_test)
     return LaggedMoments(
         moments=np.stack(all_moments),
         slopes=np.stack(all_slopes),
+        damping_cross=np.stack(all_cross),
+        damping_gram=np.stack(all_gram),
         n_pairs=np.asarray(n_pairs),
         alpha_grid=np.asarray(alpha_grid, dtype=float),
         coefficient_scale=coefficient_scale,
