@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from dataclasses import replace
 
@@ -85,7 +86,10 @@ def main():
     print("converged:", sum(r["converged"] for r in rows), "of", len(rows))
     if args.out:
         with open(args.out, "w") as fh:
-            json.dump({"signals": overrides, "shared": args.shared, "coverage": coverage, "median_error": errors, "within_tolerance": within, "rows": rows}, fh, indent=1)
+            json.dump({"command": " ".join(sys.argv), "signals": overrides, "shared": args.shared,
+                       "coverage": coverage, "median_error": errors, "within_tolerance": within,
+                       "z_mean_sd": {n: [float(np.mean(v)), float(np.std(v))] for n, v in z.items()},
+                       "converged": int(sum(r["converged"] for r in rows)), "rows": rows}, fh, indent=1)
 
 
 if __name__ == "__main__":
