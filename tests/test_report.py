@@ -307,3 +307,21 @@ def test_series_with_an_effect_the_model_lacks_shows_warnings_at_the_top(tmp_pat
     html = report.html
     assert html.index("id='warnings'") < html.index("id='health'")
     assert "fit poorly" in html[html.index("id='warnings'") : html.index("id='health'")]
+
+
+def test_sampler_checks_leave_out_a_coefficient_shared_by_all_tests():
+    """With Me shared its between-test sd is 0 in every draw: the report's R-hat and ESS checks
+    must skip it (not divide by its zero variance) and still judge the other spreads."""
+    from dataclasses import replace
+
+    from bayes_sst.inference._priors import make_priors
+    from bayes_sst.report._health import sampler_checks
+
+    plan = [{"kind": "sine", "frequency_hz": f, "amplitude_m": a} for f, a in ((0.5, 0.06), (1.0, 0.04), (2.0, 0.02))]
+    series = simulate("sst-paper", seed=8, spread=0.02, plan=plan)
+    result = fit(series, chains=2, draws=200, warmup=200, seed=2, prior=replace(make_priors("generic"), shared=("Me",)))
+    assert float(result.tree["posterior"]["between_test_sd"].sel(coefficient="Me").max()) == 0.0
+    checks = {c.name: c for c in sampler_checks(result.tree)}
+    rhat_check = checks["R-hat (population values)"]
+    assert np.isfinite(rhat_check.value) and rhat_check.value < 1.1
+    assert np.isfinite(checks["bulk ESS (population values)"].value)

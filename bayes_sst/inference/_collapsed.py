@@ -24,6 +24,9 @@ and with Q = S0^-1 + sum H_j, r = S0^-1 m0 + sum h_j:
                                         + 1/2 r' Q^-1 r - 1/2 m0' S0^-1 m0
     mu | rest ~ N(Q^-1 r, Q^-1),   theta_j | mu, rest ~ N(mu + P_j^-1 (b_j - A_j mu), P_j^-1),
     P_j^-1 = D B_j^-1 D.
+
+test_terms evaluates H_j and h_j in forms without the subtractions above (see there), and the
+noise sd entering A, b, c is sqrt(sigma^2 + floor^2) (RELATIVE_NOISE_FLOOR).
 """
 
 from __future__ import annotations

@@ -80,6 +80,15 @@ def sampler_checks(tree) -> list[Check]:
     stats = tree["sample_stats"].to_dataset()
     n_draws = int(stats.sizes["chain"] * stats.sizes["draw"])
     checks = []
+    # a coefficient shared by all tests (--shared, or fit's mass refit) has a spread of exactly
+    # 0 in every draw: no R-hat or ESS to compute, so it is left out of these checks
+    spreads = tree["posterior"]["between_test_sd"]
+    varying = [c for c in spreads["coefficient"].values
+               if float(spreads.sel(coefficient=c).std()) > 0.0]
+    if len(varying) < spreads.sizes["coefficient"]:
+        tree = tree.copy()
+        posterior = tree["posterior"].to_dataset()
+        tree["posterior"] = posterior.assign(between_test_sd=posterior["between_test_sd"].sel(coefficient=varying))
 
     value, where = _worst(rhat(tree, var_names=population), np.nanargmax)
     checks.append(Check("R-hat (population values)", value, RHAT_LIMIT, value <= RHAT_LIMIT,
