@@ -180,6 +180,21 @@ def test_unrolled_cholesky_matches_numpy():
     assert np.allclose(sl.cho_solve(L, b.T, np).T, np.linalg.solve(spd, b[..., None])[..., 0])
 
 
+def test_column_cholesky_of_one_matrix_matches_numpy_and_its_gradient_matches_jax():
+    rng = np.random.default_rng(7)
+    a = rng.standard_normal((4, 4))
+    spd = a @ a.T + 0.5 * np.eye(4)
+    assert np.allclose(sl.cholesky_by_columns(spd, np), np.linalg.cholesky(spd))
+    assert np.allclose(sl.cholesky_by_columns(jnp.asarray(spd)), np.linalg.cholesky(spd))
+
+    def log_det(m, factor):
+        return 2.0 * jnp.sum(jnp.log(jnp.diag(factor(m @ m.T + 0.5 * jnp.eye(4)))))
+
+    ours = jax.grad(log_det)(jnp.asarray(a), sl.cholesky_by_columns)
+    reference = jax.grad(log_det)(jnp.asarray(a), jnp.linalg.cholesky)
+    assert np.allclose(ours, reference, rtol=1e-10, atol=1e-12)
+
+
 def _precise_problem(rng, noise, n_tests=6, n_samples=80):
     """Tests whose force is X_j theta_j plus white noise of sd `noise`, force of order 1, with a
     sine-like pair of nearly collinear columns (as a and u are), on a 2-point alpha grid."""

@@ -31,6 +31,28 @@ def cholesky(A, xp=jnp):
     return xp.stack([xp.stack([L[i][j] if j <= i else zero for j in range(n)]) for i in range(n)])
 
 
+def cholesky_by_columns(A, xp=jnp):
+    """Lower-triangular L with L L' = A for ONE small SPD matrix (n, n), column by column:
+
+        v_j = A[:, j] - sum_{k<j} L[j, k] L[:, k],   L[:, j] = v_j / sqrt(v_j[j]) below the diagonal.
+
+    For a single matrix there is no batch to vectorise, and the entry-by-entry form of
+    `cholesky` becomes dozens of scalar operations (and as many again in the gradient) that XLA
+    compiles one by one; as n-vector operations the same factorisation compiles in about a
+    third of the time. (LAPACK compiles faster still, but made JAX crash while writing the
+    persistent compilation cache.)
+    """
+    n = A.shape[0]
+    below = xp.arange(n)
+    columns = []
+    for j in range(n):
+        v = A[:, j]
+        for k in range(j):
+            v = v - columns[k][j] * columns[k]
+        columns.append(xp.where(below >= j, v, 0.0) / xp.sqrt(v[j]))
+    return xp.stack(columns, axis=1)
+
+
 def solve_lower(L, b, xp=jnp):
     """x with L x = b (forward substitution); b (n, *batch) or, several columns, (n, m, *batch)."""
     n = L.shape[0]
