@@ -253,7 +253,7 @@ def small_run(tmp_path_factory, example_tests):
     subset = Series(name="small", tests=tuple(t for t in full.tests if t.id in keep), table=full.table)
     write_series(subset, base / "series")
     series = load_series(base / "series")
-    result = fit(series, chains=2, draws=150, warmup=150, seed=0)
+    result = fit(series, chains=2, draws=400, warmup=300, seed=0)
     write_run(base / "run", result.tree, summarize(result.tree), "", overwrite=False)
     return base
 
@@ -275,9 +275,12 @@ def test_design_command_writes_json_text_and_plot(small_run, capsys):
     for row in data["curve"]:
         for name in ("Ke", "Fmu"):
             assert 0 < row[name]["q10"] <= row[name]["q50"] <= row[name]["q90"]
-    # n_added = 0 reproduces the run's own intervals (same model, no new data)
+    # n_added = 0 reproduces the run's own intervals (same model, no new data), within the
+    # Monte Carlo error of a 4-test run and the design's draw subset: over ten fits of this run
+    # (seeds 0-4, with and without the accelerometer's synchronous average) the ratio was
+    # 0.95-1.07 for Ke and 0.87-1.23 for Fmu
     for name in ("Ke", "Fmu"):
-        assert data["curve"][0][name]["q50"] == pytest.approx(data["current"][name], rel=0.15)
+        assert data["curve"][0][name]["q50"] == pytest.approx(data["current"][name], rel=0.25)
     # recommended tests respect the table's limits
     limits = TableLimits(**data["limits"])
     coefficients = {**{k: 1.0 for k in ("Me", "Ke", "Ce", "Fmu")}, "alpha": 0.5}

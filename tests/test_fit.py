@@ -8,6 +8,7 @@ import pytest
 from bayes_sst.inference import fit
 from bayes_sst.inference._summary import format_summary, summarize
 from bayes_sst.io import load_series, read_run_summary, read_run_tree, write_run
+from bayes_sst.signals import SignalOptions
 from bayes_sst.twin import default_plan, simulate
 
 NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
@@ -131,7 +132,6 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     from types import SimpleNamespace
 
     from bayes_sst.inference._predictive import run_signal_options
-    from bayes_sst.signals import SignalOptions
 
     current = dataclasses.asdict(SignalOptions())
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).reversal_window
@@ -139,28 +139,51 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     options = run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)}))
     assert options.reversal_window is False and options.cutoff_multiple == current["cutoff_multiple"]
     assert run_signal_options(SimpleNamespace(attrs={})) == SignalOptions()
+    # and runs from before the accelerometer's synchronous average without that
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).periodic_acceleration
+    older = {k: v for k, v in current.items() if k != "periodic_acceleration"}
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).periodic_acceleration is False
+
+
+def _white_force_noise_series():
+    from bayes_sst.twin import SensorNoise
+
+    return simulate("sst-paper", seed=1, spread={"Ke": 0.03, "Ce": 0.03, "Fmu": 0.03},
+                    noise=SensorNoise(F_colored=0.0))
 
 
 def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_a_shared_mass():
-    """With only white force noise the accelerometer's noise (times Me) dominates the slow sine
-    tests' residual, and their per-test Me slides along the Me-Ke ridge toward 0 (population
-    Me -43 %, its between-test sd 73 %). fit must notice the implausible mass spread, refit
-    with Me shared (this series' mass is the same in every test) and say so in the summary;
-    without the automatic refit the failure is visible and flagged."""
-    from bayes_sst.twin import SensorNoise
-
-    series = simulate("sst-paper", seed=1, spread={"Ke": 0.03, "Ce": 0.03, "Fmu": 0.03},
-                      noise=SensorNoise(F_colored=0.0))
+    """With only white force noise and the accelerometer read as recorded (no synchronous
+    average), the accelerometer's noise (times Me) dominates the slow sine tests' residual,
+    and their per-test Me slides along the Me-Ke ridge toward 0 (population Me -43 %, its
+    between-test sd 73 %). fit must notice the implausible mass spread, refit with Me shared
+    (this series' mass is the same in every test) and say so in the summary; without the
+    automatic refit the failure is visible and flagged."""
+    series = _white_force_noise_series()
     truth = series.extra["truth"]["Me"]
-    raw = summarize(fit(series, seed=1, auto_share_mass=False).tree)
+    as_recorded = SignalOptions(periodic_acceleration=False)
+    raw = summarize(fit(series, seed=1, auto_share_mass=False, signals=as_recorded).tree)
     assert raw["between_test_spread"]["Me"]["relative_sd_mean"] > 0.10
     assert raw["parameters"]["Me"]["mean"] < 0.9 * truth  # the failure itself
     assert any("moving mass varies" in w and "--shared Me" in w for w in raw["warnings"])
 
-    result = fit(series, seed=1)
+    result = fit(series, seed=1, signals=as_recorded)
     assert "Me" in result.priors.shared and "mass_refit" in result.tree.attrs
     summary = summarize(result.tree)
     assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.01
     assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"]
     assert any(w.startswith("Me is shared by all tests") for w in summary["warnings"])
     assert summary["between_test_spread"]["Me"]["relative_sd_q95"] == 0.0
+
+
+def test_the_averaged_acceleration_keeps_the_mass_from_sliding_under_white_force_noise():
+    """The same series with the default signals: the accelerometer's cycle-synchronous average
+    cuts its noise by the cycle count, the mass stays put and no refit is needed."""
+    series = _white_force_noise_series()
+    truth = series.extra["truth"]["Me"]
+    result = fit(series, seed=1)
+    assert "mass_refit" not in result.tree.attrs and "Me" not in result.priors.shared
+    summary = summarize(result.tree)
+    assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.02
+    assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"]
+    assert summary["between_test_spread"]["Me"]["relative_sd_mean"] < 0.05

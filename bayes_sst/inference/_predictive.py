@@ -33,14 +33,16 @@ def response(test: PreparedTest) -> np.ndarray:
 def run_signal_options(tree) -> SignalOptions:
     """The signal options a run was fitted with (defaults for runs that did not record them).
 
-    A run whose options predate the reversal weight (no "reversal_window" key) was fitted
-    without it, and is re-prepared without it.
+    A run whose options predate the reversal weight (no "reversal_window" key) or the
+    synchronous average of a (no "periodic_acceleration") was fitted without it, and is
+    re-prepared without it.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
         return SignalOptions()
     recorded = json.loads(text)
     recorded.setdefault("reversal_window", False)
+    recorded.setdefault("periodic_acceleration", False)
     return SignalOptions(**recorded)
 
 

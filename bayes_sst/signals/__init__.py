@@ -1,6 +1,6 @@
 """Signals: filtering, derivatives, steady-state cycles and the likelihood's sample set."""
 
-from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, steady_cycles
+from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._prepare import (
     MIN_STEADY_CYCLES,
@@ -18,6 +18,7 @@ __all__ = [
     "SignalOptions",
     "fundamental_phase",
     "lowpass_sos",
+    "periodic_component",
     "prepare_series",
     "prepare_test",
     "reversal_weight",
