@@ -187,3 +187,21 @@ def test_the_averaged_acceleration_keeps_the_mass_from_sliding_under_white_force
     assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.02
     assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"]
     assert summary["between_test_spread"]["Me"]["relative_sd_mean"] < 0.05
+
+
+def test_without_an_accelerometer_damping_and_friction_stay_close(noisy_fit):
+    """The same series with `a` (and `v`) removed: the acceleration then comes from the
+    displacement. Measured: Me -1.6 %, Ke -0.0 %, Ce +2.7 %, alpha -0.003, Fmu -2.8 %; with the
+    second derivative of the low-passed u used before, Ce +10.3 % and Fmu -8.6 %."""
+    from dataclasses import replace
+
+    from bayes_sst.io import TestRecord
+
+    series, _ = noisy_fit
+    without = replace(series, tests=tuple(
+        TestRecord(r.spec, {k: v for k, v in r.columns.items() if k not in ("a", "v")}) for r in series.tests))
+    truth = series.extra["truth"]
+    summary = summarize(fit(without, seed=3).tree)
+    for name, tolerance in (("Me", 0.03), ("Ke", 0.03), ("Ce", 0.06), ("Fmu", 0.05)):
+        assert abs(summary["parameters"][name]["mean"] / truth[name] - 1) < tolerance, name
+    assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05

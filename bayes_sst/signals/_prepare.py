@@ -4,7 +4,8 @@ Treatment, for each periodic test of fundamental f sampled at fs:
 
 1. Band. A zero-phase Butterworth low-pass at fc = cutoff_multiple*f (the study uses 4f)
    cleans the displacement; velocity is its time derivative, acceleration the filtered
-   measured `a` when recorded (else the second derivative of the filtered displacement).
+   measured `a` when recorded (else the time derivative of the lightly smoothed velocity
+   of point 3, before the reversal weight and the low-pass, like a measured a).
 2. Consistent filtering. The force is filtered with the same fc, and so is every regressor
    of the model: filter(a) and filter(u) are the filtered signals themselves (a filter
    commutes with differentiation), and the velocity regressors |v|^alpha*sign(v) and sign(v)
@@ -50,7 +51,7 @@ import numpy as np
 
 from bayes_sst.io import Series, SeriesFormatError, TestRecord
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import second_derivative, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import time_derivative, zero_phase_lowpass
 
 MIN_STEADY_CYCLES = 3
 
@@ -221,12 +222,16 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     u_f = zero_phase_lowpass(record.u, cutoff, fs)
     v_f = _velocity(record, cutoff, options)
     measured_a = record.get("a")
-    # Without an accelerometer, the second derivative of the filtered u. It is the true
-    # acceleration already smeared over 1/fc, so the reversal weight cannot keep the rest and
-    # breakaway out of it, and such series carry a bias (README, known limitations); the
-    # second derivative of the recorded u instead was worse (its noise let one randomised
-    # series' Me and Ke slide along the sine ridge to -60 % and -99 %).
-    a_raw = measured_a if measured_a is not None else second_derivative(u_f, fs)
+    # Without an accelerometer, the time derivative of the lightly smoothed velocity of the
+    # velocity regressors, at the recorded rate, so that it is weighted and filtered exactly as
+    # a measured a would be. The second derivative of the low-passed u (used before) is the
+    # acceleration already smeared over 1/fc: the reversal weight then could not keep the rest
+    # and breakaway out of it, and randomised virtual series (seeds 5-8, a removed) came out
+    # with Ce +8..+12 % and Fmu -5..-10 %; with this one Ce +1.8..+2.4 % and Fmu -2.0..-4.4 %,
+    # 0.9-2.0 % (Ce) and 1.7-5.7 % (Fmu) from the same series fitted with their accelerometer.
+    # The second difference of the raw u was noisier (its near-Nyquist noise, multiplied by the
+    # weight, folds into the band: Fmu -10.5 % on seed 2, against -5.2 % with a).
+    a_raw = measured_a if measured_a is not None else time_derivative(v_f, fs)
 
     window = steady_cycles(
         u_f, record.t, f, tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles
