@@ -597,3 +597,18 @@ def test_without_an_accelerometer_the_weighted_acceleration_matches_the_measured
         keep = with_a.keep
         relative = np.sqrt(np.mean((without_a.a - with_a.a)[keep] ** 2) / np.mean(with_a.a[keep] ** 2))
         assert relative < limits[record.spec.kind], (record.spec.kind, relative)
+
+
+def test_prepare_test_removes_constant_sensor_offsets():
+    """Offsets on F, u, a and v change nothing the likelihood sees (up to the means' own
+    partial-sample error), and with remove_offsets=False they do."""
+    record, truth = _synthetic_test(1, 1.3, 0.03, noise_u=5e-5, noise_F=100.0, seed=8)
+    record = TestRecord(record.spec, dict(record.columns, v=truth["v"]))
+    shifted = TestRecord(record.spec, {k: v + {"F": 3000.0, "u": 0.003, "a": 0.05, "v": 0.002}.get(k, 0.0)
+                                       for k, v in record.columns.items()})
+    base, moved = prepare_test(record), prepare_test(shifted)
+    for name, scale in (("F", 3000.0), ("u", 0.003), ("a", 0.05), ("v", 0.002)):
+        assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-3 * scale, name
+    assert np.array_equal(moved.keep, base.keep)
+    kept = prepare_test(shifted, SignalOptions(remove_offsets=False))
+    assert np.max(np.abs(kept.F - base.F)) > 0.5 * 3000.0

@@ -34,7 +34,8 @@ def run_signal_options(tree) -> SignalOptions:
     """The signal options a run was fitted with (defaults for runs that did not record them).
 
     A run whose options predate the reversal weight (no "reversal_window" key) or the
-    synchronous average of a (no "periodic_acceleration") was fitted without it, and is
+    synchronous average of a (no "periodic_acceleration") or the removal of the steady
+    window's offsets (no "remove_offsets") was fitted without it, and is
     re-prepared without it.
     """
     text = tree.attrs.get("signal_options", "")
@@ -43,6 +44,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded = json.loads(text)
     recorded.setdefault("reversal_window", False)
     recorded.setdefault("periodic_acceleration", False)
+    recorded.setdefault("remove_offsets", False)
     return SignalOptions(**recorded)
 
 

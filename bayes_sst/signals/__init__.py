@@ -9,6 +9,7 @@ from bayes_sst.signals._prepare import (
     prepare_series,
     prepare_test,
     reversal_weight,
+    without_steady_offsets,
 )
 
 __all__ = [
@@ -25,5 +26,6 @@ __all__ = [
     "second_derivative",
     "steady_cycles",
     "time_derivative",
+    "without_steady_offsets",
     "zero_phase_lowpass",
 ]
