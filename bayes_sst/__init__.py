@@ -8,7 +8,13 @@ start fast.
 
 from __future__ import annotations
 
-from bayes_sst._lazy import lazy_attributes
+import os
+
+# Read by JAX when it is first imported, which a submodule may do before bayes_sst._jaxconfig
+# runs; see _jaxconfig for why (the user's own setting wins).
+os.environ.setdefault("JAX_USE_SIMPLIFIED_JAXPR_CONSTANTS", "true")
+
+from bayes_sst._lazy import lazy_attributes  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -278,7 +278,8 @@ def point_loo(predictives, posterior: xr.Dataset, *, seed: int = 0) -> PointLoo:
         sample_index=np.concatenate(where),
         pareto_k=np.asarray(elpd.pareto_k.values),
         good_k=float(elpd.good_k),
-        pit=np.asarray(pit["F"].values),
+        # a sum of normalised weights can round to 1 + 2e-16; a PIT is a probability
+        pit=np.clip(np.asarray(pit["F"].values), 0.0, 1.0),
         elpd=float(elpd.elpd),
         elpd_se=float(elpd.se),
         tree=tree,
