@@ -1,13 +1,17 @@
 """End-to-end: virtual-table series with known truth -> posterior that contains it."""
 
 import json
+import os
+import subprocess
+import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from bayes_sst.inference import fit
 from bayes_sst.inference._summary import format_summary, summarize
-from bayes_sst.io import load_series, read_run_summary, read_run_tree, write_run
+from bayes_sst.io import TestRecord, load_series, read_run_summary, read_run_tree, write_run
 from bayes_sst.signals import SignalOptions
 from bayes_sst.twin import default_plan, simulate
 
@@ -104,7 +108,6 @@ def test_shared_mass_has_no_between_test_spread_and_recovers_a_constant_mass():
     """--shared Me: a campaign whose moving mass is the same in every test (the twin varies
     only Ke, Ce, Fmu) fitted with Me shared: every test's Me is the population Me in every
     draw, its between-test sd is exactly 0, and the population Me holds the truth."""
-    from dataclasses import replace
 
     from bayes_sst.inference._priors import make_priors
 
@@ -193,10 +196,6 @@ def test_without_an_accelerometer_damping_and_friction_stay_close(noisy_fit):
     """The same series with `a` (and `v`) removed: the acceleration then comes from the
     displacement. Measured: Me -1.6 %, Ke -0.0 %, Ce +2.7 %, alpha -0.003, Fmu -2.8 %; with the
     second derivative of the low-passed u used before, Ce +10.3 % and Fmu -8.6 %."""
-    from dataclasses import replace
-
-    from bayes_sst.io import TestRecord
-
     series, _ = noisy_fit
     without = replace(series, tests=tuple(
         TestRecord(r.spec, {k: v for k, v in r.columns.items() if k not in ("a", "v")}) for r in series.tests))
@@ -207,7 +206,7 @@ def test_without_an_accelerometer_damping_and_friction_stay_close(noisy_fit):
     assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05
 
 
-@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/maps"), reason="needs Linux /proc")
+@pytest.mark.skipif(not os.path.exists("/proc/self/maps"), reason="needs Linux /proc")
 def test_fits_release_their_compiled_programs():
     """Each fit's sampler is a new compiled program of ~900 memory mappings; kept, ~70 fits in
     one process exhausted the kernel's 65,530 and LLVM aborted. Released, the count stays flat
@@ -232,10 +231,6 @@ def test_a_second_series_of_the_same_size_reuses_the_compiled_sampler(tmp_path):
     persistent compilation cache: the sampler is compiled once (one cache entry), because the
     data, start values and initial mass matrix reach it as arguments, not as constants.
     (Arrays of up to 32 bytes stay embedded: series of four tests or fewer compile each time.)"""
-    import os
-    import subprocess
-    import sys
-
     script = (
         "import sys\n"
         "from bayes_sst.inference import fit\n"

@@ -76,7 +76,7 @@ class SignalOptions:
     periodic_acceleration : replace a measured acceleration inside the steady window by its
         cycle-synchronous average over whole-sample cycle shifts (periodic_component).
     remove_offsets : subtract from F, u, a (and a measured v) their means over the steady
-        window's whole cycles (sensor zero offsets; see _steady_offsets).
+        window's whole cycles (sensor zero offsets; see without_steady_offsets).
     """
 
     cutoff_multiple: float = 4.0
@@ -256,8 +256,10 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
             f"at least {MIN_STEADY_CYCLES} are needed",
         )
     if options.remove_offsets:
-        record = without_steady_offsets(record, window)
-        u_f = zero_phase_lowpass(record.u, cutoff, fs)
+        centred = without_steady_offsets(record, window)
+        # the low-pass passes a constant unchanged: shift u_f rather than filter u again
+        u_f = u_f - (record.u[0] - centred.u[0])
+        record = centred
     v_f = _velocity(record, cutoff, options)
     measured_a = record.get("a")
     # Without an accelerometer, the time derivative of the lightly smoothed velocity of the
