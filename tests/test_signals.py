@@ -21,6 +21,7 @@ from bayes_sst.signals import (
     CycleWindow,
     MIN_STEADY_CYCLES,
     SignalOptions,
+    friction_load,
     fundamental_phase,
     lowpass_sos,
     periodic_component,
@@ -612,3 +613,48 @@ def test_prepare_test_removes_constant_sensor_offsets():
     assert np.array_equal(moved.keep, base.keep)
     kept = prepare_test(shifted, SignalOptions(remove_offsets=False))
     assert np.max(np.abs(kept.F - base.F)) > 0.5 * 3000.0
+
+
+SST_TABLE = {"deck_mass_kg": 12000.0, "strut": {"p0_pa": 6.9e6, "area_m2": 0.0314, "h_m": 1.2}}
+
+
+def test_friction_load_is_the_ratio_of_bearing_loads():
+    # SST: F_hd = 4*6.9e6*0.0314 = 866,640 N, N_empty = F_hd + 12,000*9.80665 = 984,320 N;
+    # 5 t more weighs 49,033 N: ratio 1.049814
+    assert friction_load(SST_TABLE, 5000.0) == pytest.approx(1.0 + 5000.0 * 9.80665 / 984319.8, rel=1e-9)
+    assert friction_load(SST_TABLE, 5000.0) == pytest.approx(1.049814, abs=1e-6)
+    assert friction_load(SST_TABLE, 0.0) == 1.0
+    # without F_hd or the deck mass the ratio is unknown and left at 1
+    assert friction_load({"deck_mass_kg": 12000.0}, 5000.0) == 1.0
+    assert friction_load({"strut": SST_TABLE["strut"]}, 5000.0) == 1.0
+    assert friction_load({}, 5000.0) == 1.0
+
+
+def test_payload_friction_is_scaled_to_the_empty_tables_coefficient():
+    """Fmu = mu_e*(F_hd + (m_deck + payload)*g): tests with payloads 0, 4 and 8 t have 0, 4 and
+    8 % more friction. prepare_series scales each test's Coulomb regressor by its load ratio,
+    so pooled least squares on F - payload*a returns the empty table's Fmu."""
+    payloads = (0.0, 4000.0, 8000.0)
+    records = []
+    for i, ((f, amp), payload) in enumerate(zip(PLAN, payloads)):
+        rng = np.random.default_rng(40 + i)
+        t, u, v, a = _ramped_sine(f, amp, FS, N_IN, N_STEADY, N_OUT, rng.uniform(0.05, 0.95))
+        load = 1.0 + payload * 9.80665 / (4 * 6.9e6 * 0.0314 + 12000.0 * 9.80665)
+        truth = dict(TRUE, Me=TRUE["Me"] + payload, Fmu=TRUE["Fmu"] * load)
+        spec = TestSpec(id=f"P{i}", file=f"P{i}.csv", kind="sine", frequency_hz=f, amplitude_m=amp,
+                        payload_kg=payload, order=i)
+        records.append(TestRecord(spec, {"t": t, "u": u, "F": _force_truth(u, v, a, truth), "a": a}))
+    series = Series(name="payloads", tests=tuple(records), table=SST_TABLE)
+    prepared = prepare_series(series)
+    assert [p.friction_load for p in prepared] == pytest.approx([1.0, 1.0398514, 1.0797028], abs=1e-6)
+
+    def pooled(tests):
+        shifted = [replace(p, F=p.F - p.payload_kg * p.a) for p in tests]
+        return _pooled_least_squares(shifted)
+
+    estimate = pooled(prepared)
+    for name, value in estimate.items():
+        assert value == pytest.approx(TRUE[name], rel=0.01), name
+    # the same tests without the table's bearing loads: the extra friction lands in Fmu
+    unscaled = pooled([replace(p, friction_load=1.0) for p in prepared])
+    assert unscaled["Fmu"] / TRUE["Fmu"] - 1 > 0.02

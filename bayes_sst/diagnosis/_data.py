@@ -96,5 +96,6 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             F_full=zero_phase_lowpass(record.F, cutoff, fs)[lo:hi],
             a_record=a_raw[:hi],
             period_samples=p.window.period_samples,
+            friction_load=p.friction_load,
         ))
     return out

@@ -126,7 +126,7 @@ def full_rate_residual(test: EffectData, fit: ModelFit, j: int) -> np.ndarray:
     theta = fit.theta[j][:4]
     v = test.v_full
     damping = test.filtered_full(np.abs(v) ** fit.alpha * np.sign(v))
-    sign = test.filtered_full(np.sign(v))
+    sign = test.friction_load * test.filtered_full(np.sign(v))
     model = theta[0] * test.a_full + theta[1] * test.u_full + theta[2] * damping + theta[3] * sign
     return test.F_full - test.payload_kg * test.a_full - model
 

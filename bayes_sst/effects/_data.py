@@ -26,8 +26,8 @@ class EffectData:
     full-rate displacement, velocity, acceleration and force over [lo, lo + len);
     a_record: the recorded (unfiltered) acceleration from the record's start to lo + len, so
     that a dynamic effect can be run from rest (a_raw is its part over [lo, lo + len));
-    sign_kept, damping: filter(sign v) at the kept samples and a callable alpha ->
-    filter(|v|^alpha sign v) at the kept samples.
+    period_samples: the test's period in samples; friction_load: N_test/N_empty, the factor of
+    the Coulomb regressor (bayes_sst.signals.friction_load: a payload loads the bearings).
     """
 
     id: str
@@ -46,6 +46,7 @@ class EffectData:
     F_full: np.ndarray
     a_record: np.ndarray
     period_samples: float
+    friction_load: float = 1.0
 
     @property
     def a_raw(self) -> np.ndarray:
@@ -85,8 +86,9 @@ class EffectData:
         return self.filtered(np.abs(self.v_full) ** alpha * np.sign(self.v_full))
 
     def sign(self) -> np.ndarray:
-        """filter(sign v) at the kept samples."""
-        return self.filtered(np.sign(self.v_full))
+        """friction_load*filter(sign v) at the kept samples: the Coulomb regressor of the empty
+        table's Fmu."""
+        return self.friction_load * self.filtered(np.sign(self.v_full))
 
     def force_at(self, shift_s: float) -> np.ndarray:
         """The filtered force read shift_s later than the kept instants, F(t + shift), by linear interpolation."""

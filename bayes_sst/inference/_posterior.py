@@ -107,6 +107,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
             "frequency_hz": (("test",), np.array([t.frequency_hz for t in prepared])),
             "amplitude_m": (("test",), np.array([t.amplitude_m for t in prepared])),
             "payload_kg": (("test",), np.array([t.payload_kg for t in prepared])),
+            "friction_load": (("test",), np.array([t.friction_load for t in prepared])),
             "kind": (("test",), np.array([t.kind for t in prepared])),
             "cutoff_hz": (("test",), np.array([t.cutoff_hz for t in prepared])),
             "n_cycles": (("test",), np.array([t.window.n_cycles for t in prepared])),

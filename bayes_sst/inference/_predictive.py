@@ -11,7 +11,7 @@ bayes_sst.inference._statistics, and e started from its stationary law sd sigma/
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,6 +62,9 @@ def run_prepared(tree, series=None) -> list[PreparedTest]:
             raise ValueError("the run does not record its series folder; pass the series explicitly")
         series = load_series(path)
     prepared = {t.id: t for t in prepare_series(series, run_signal_options(tree))}
+    if "friction_load" not in tree["constant_data"]:
+        # fitted before the Coulomb regressor was scaled by the payload's load: as it was fitted
+        prepared = {k: replace(t, friction_load=1.0) for k, t in prepared.items()}
     wanted = [str(t) for t in tree["posterior"]["test"].values]
     missing = [t for t in wanted if t not in prepared]
     if missing:

@@ -34,6 +34,15 @@ def normal_force(hold_down: float, moving_mass: float, g: float = STANDARD_GRAVI
     return hold_down + moving_mass * g
 
 
+def friction_load_ratio(hold_down: float, deck_mass: float, payload: float, g: float = STANDARD_GRAVITY) -> float:
+    """N_test/N_empty = (F_hd + (m_deck + m_payload)*g)/(F_hd + m_deck*g).
+
+    Fmu = mu_e*N: a payload's weight loads the bearings too, so a test with a specimen on the
+    deck has this much more Coulomb friction than the empty table (mu_e unchanged).
+    """
+    return normal_force(hold_down, deck_mass + payload, g) / normal_force(hold_down, deck_mass, g)
+
+
 def coulomb_friction(mu: float, normal: float) -> float:
     """Fmu = mu_e*N, N."""
     return mu * normal
