@@ -155,41 +155,28 @@ def _white_force_noise_series():
                     noise=SensorNoise(F_colored=0.0))
 
 
-def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_a_limited_mass_spread():
+def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_a_shared_mass():
     """With only white force noise and the accelerometer read as recorded (no synchronous
     average), the accelerometer's noise (times Me) dominates the slow sine tests' residual,
     and their per-test Me slides along the Me-Ke ridge toward 0 (population Me -43 %, its
-    between-test sd 73 %). fit must notice the implausible mass spread, refit with Me's
-    between-test spread under the tight prior (median 1 %) and say so in the summary; without
-    the automatic refit the failure is visible and flagged. Measured: Me -0.34 %, sd 0.41 %,
-    fitted mass spread 0.7 % (this series' mass is the same in every test)."""
+    between-test sd 73 %). fit must notice the implausible mass spread, refit with Me shared
+    (this series' mass is the same in every test) and say so in the summary; without the
+    automatic refit the failure is visible and flagged."""
     series = _white_force_noise_series()
     truth = series.extra["truth"]["Me"]
     as_recorded = SignalOptions(periodic_acceleration=False)
-    raw = summarize(fit(series, seed=1, auto_limit_mass=False, signals=as_recorded).tree)
+    raw = summarize(fit(series, seed=1, auto_share_mass=False, signals=as_recorded).tree)
     assert raw["between_test_spread"]["Me"]["relative_sd_mean"] > 0.10
     assert raw["parameters"]["Me"]["mean"] < 0.9 * truth  # the failure itself
     assert any("moving mass varies" in w and "--shared Me" in w for w in raw["warnings"])
 
     result = fit(series, seed=1, signals=as_recorded)
-    assert "Me" in result.priors.limited and "Me" not in result.priors.shared
-    assert json.loads(result.tree.attrs["mass_refit"])["mode"] == "limited"
+    assert "Me" in result.priors.shared and "mass_refit" in result.tree.attrs
     summary = summarize(result.tree)
     assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.01
     assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"]
-    assert any(w.startswith("Me's between-test spread is limited") for w in summary["warnings"])
-    assert 0.0 < summary["between_test_spread"]["Me"]["relative_sd_mean"] < 0.03
-
-
-def test_limited_spread_prior_is_tight_only_for_the_limited_coefficient():
-    from bayes_sst.inference._priors import LIMITED_SPREAD_LOG_SD, LIMITED_SPREAD_MEDIAN, make_priors
-
-    priors = replace(make_priors("generic"), limited=("Me",))
-    loc, log_sd = priors.spread_prior()
-    np.testing.assert_allclose(np.exp(loc), [LIMITED_SPREAD_MEDIAN] + [priors.spread_median] * 3)
-    np.testing.assert_allclose(log_sd, [LIMITED_SPREAD_LOG_SD] + [priors.spread_log_sd] * 3)
-    with pytest.raises(ValueError, match="limited coefficients"):
-        replace(priors, limited=("mass",)).spread_prior()
+    assert any(w.startswith("Me is shared by all tests") for w in summary["warnings"])
+    assert summary["between_test_spread"]["Me"]["relative_sd_q95"] == 0.0
 
 
 def test_the_averaged_acceleration_keeps_the_mass_from_sliding_under_white_force_noise():

@@ -89,7 +89,7 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     cost measured) and adaptation refines them:
 
         sd(log sigma_j) ~ 1/sqrt(2 n_j),   sd(phi_j) ~ sqrt((1 - phi_j^2)/n_j),
-        sd(log rho_k) ~ 1/sqrt(2 J) + 0.25 (capped at the prior's log sd),
+        sd(log rho_k) ~ 1/sqrt(2 J) + 0.25 (capped at the prior's 1),
 
     mapped through the interval transforms: for x = low + (high - low)*sigmoid(z),
     dz/dx = (high - low)/((x - low)(high - x)).
@@ -104,8 +104,8 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     sd_log_sigma = 1.0 / np.sqrt(2.0 * n)
     alpha = float(np.clip(start["alpha"], priors.alpha_low + 0.05, priors.alpha_high - 0.05))
     sd_alpha = alpha_sd * (priors.alpha_high - priors.alpha_low) / ((alpha - priors.alpha_low) * (priors.alpha_high - alpha))
-    sd_log_spread = np.minimum(priors.spread_prior()[1], 0.25 + 1.0 / np.sqrt(2.0 * moments.n_tests))
-    global_variances = np.concatenate([[sd_alpha**2], sd_log_spread**2])
+    sd_log_spread = min(priors.spread_log_sd, 0.25 + 1.0 / np.sqrt(2.0 * moments.n_tests))
+    global_variances = np.concatenate([[sd_alpha**2], np.full(4, sd_log_spread**2)])
     return {
         ("alpha", "spread"): jnp.diag(jnp.asarray(global_variances)),
         ("phi",): jnp.asarray(sd_phi**2),
@@ -140,7 +140,7 @@ def fit(
     prior: str | Priors = "generic",
     signals: SignalOptions = SignalOptions(),
     progress: Callable[[str], None] | None = None,
-    auto_limit_mass: bool = True,
+    auto_share_mass: bool = True,
     release_compiled: bool = True,
 ) -> FitResult:
     """Posterior of the table's force model from every periodic test of `series`.
@@ -149,16 +149,12 @@ def fit(
     around population values (except the coefficients in prior.shared), shares alpha, and gives
     each test an AR(1) residual.
 
-    auto_limit_mass: when the fitted between-test sd of Me exceeds IMPLAUSIBLE_MASS_SPREAD
-    (10 %), refit with Me's between-test spread under the tight prior of Priors.limited
-    (LogNormal(log 1 %, 0.5)) and record it in tree.attrs["mass_refit"]. A table's moving mass
-    does not change that much between tests; such a spread means that the sine tests' per-test
-    Me and Ke, which a sine tells apart only through its harmonics, slid along their ridge.
-    Measured on the virtual table with white force noise only: population Me 43-57 % low with
-    the spread at 73-96 %. The refit used to share Me exactly; on an independent generator's
-    series whose mass did vary by 2 % between tests that left Me's interval at +-0.2 % and the
-    truth 4.7 sd away, since a shared Me cannot carry the between-test spread into the
-    population value's uncertainty.
+    auto_share_mass: when the fitted between-test sd of Me exceeds IMPLAUSIBLE_MASS_SPREAD
+    (10 %), refit with Me shared by all tests and record it in tree.attrs["mass_refit"]. A
+    table's moving mass does not change that much between tests; such a spread means that the
+    sine tests' per-test Me and Ke, which a sine tells apart only through its harmonics, slid
+    along their ridge. Measured on the virtual table with white force noise only: population Me
+    43-57 % low with the spread at 73-96 %; refitted with Me shared, within 0.1 %.
 
     release_compiled: after sampling, drop JAX's in-memory compiled programs
     (jax.clear_caches; see _release_compiled_programs). A later fit loads its sampler from the
@@ -196,8 +192,8 @@ def fit(
             alpha_sd=priors.alpha_sd,
             alpha_low=priors.alpha_low,
             alpha_high=priors.alpha_high,
-            spread_loc=jnp.asarray(priors.spread_prior()[0]),
-            spread_log_sd=jnp.asarray(priors.spread_prior()[1]),
+            spread_median=priors.spread_median,
+            spread_log_sd=priors.spread_log_sd,
             noise_loc=float(np.log(priors.noise_scale)),
             noise_log_sd=priors.noise_log_sd,
             varying=jnp.asarray(priors.varying_mask()),
@@ -249,14 +245,13 @@ def fit(
 
     tree = sample(priors)
     mass_spread = float(relative_between_test_sd(tree["posterior"], "Me").mean())
-    if (auto_limit_mass and "Me" not in priors.shared and "Me" not in priors.limited
-            and mass_spread > IMPLAUSIBLE_MASS_SPREAD):
+    if auto_share_mass and "Me" not in priors.shared and mass_spread > IMPLAUSIBLE_MASS_SPREAD:
         _say(progress, f"the moving mass came out varying by {100 * mass_spread:.0f} % between tests, which a "
-                       "table does not do; refitting with its between-test spread limited to about 1 % ...")
-        priors = replace(priors, limited=tuple(priors.limited) + ("Me",))
+                       "table does not do; refitting with Me shared by all tests ...")
+        priors = replace(priors, shared=tuple(priors.shared) + ("Me",))
         tree = sample(priors)
         tree.attrs["mass_refit"] = json.dumps({"first_fit_mass_spread": mass_spread,
-                                               "threshold": IMPLAUSIBLE_MASS_SPREAD, "mode": "limited"})
+                                               "threshold": IMPLAUSIBLE_MASS_SPREAD})
     return FitResult(
         tree=tree,
         prepared=prepared,

@@ -22,8 +22,8 @@ class ScaledPriors(NamedTuple):
     alpha_sd: float
     alpha_low: float
     alpha_high: float
-    spread_loc: jnp.ndarray  # (4,) log median of each between-test spread
-    spread_log_sd: jnp.ndarray  # (4,)
+    spread_median: float
+    spread_log_sd: float
     noise_loc: float
     noise_log_sd: float
     varying: jnp.ndarray  # (4,) 1.0 varies between tests, 0.0 shared
@@ -40,7 +40,7 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
         "alpha",
         dist.TruncatedNormal(priors.alpha_mean, priors.alpha_sd, low=priors.alpha_low, high=priors.alpha_high),
     )
-    spread = numpyro.sample("spread", dist.LogNormal(priors.spread_loc, priors.spread_log_sd).to_event(1))
+    spread = numpyro.sample("spread", dist.LogNormal(jnp.log(priors.spread_median), priors.spread_log_sd).expand([4]).to_event(1))
     with numpyro.plate("test", n_tests):
         phi = numpyro.sample("phi", dist.Uniform(-PHI_BOUND, PHI_BOUND))
         sigma = numpyro.sample("sigma", dist.LogNormal(priors.noise_loc, priors.noise_log_sd))

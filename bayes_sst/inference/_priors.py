@@ -27,9 +27,6 @@ and s = 0.5; physics_prior_report lists each centre with the relation and inputs
     alpha ~ N(0.75, 0.5^2) truncated to [0.05, 1.95]   (0.5 turbulent orifice flow, 1 laminar)
     rho_k ~ LogNormal(log 0.03, 1)   between-test sd of each coefficient, relative to its
                                centre (90 % prior mass from 0.6 % to 15 %)
-    rho_k ~ LogNormal(log 0.01, 0.5) for a coefficient in Priors.limited (90 % from 0.44 % to
-                               2.3 %): what fit uses for the moving mass when its first fit
-                               let per-test Me slide (see bayes_sst.inference.fit)
     phi_j ~ U(-0.999, 0.999)   AR(1) coefficient of test j's residual
     sigma_j ~ LogNormal(log(0.05 F_rms), 2)   innovation sd of test j
 
@@ -59,9 +56,6 @@ from bayes_sst.physics import (
 )
 
 GENERIC_CENTRES = {"Me": 10_000.0, "Ke": 1.0e6, "Ce": 20_000.0, "Fmu": 10_000.0}
-# between-test spread prior of a coefficient in Priors.limited
-LIMITED_SPREAD_MEDIAN = 0.01
-LIMITED_SPREAD_LOG_SD = 0.5
 DEFAULT_FRICTION_COEFFICIENT = 0.01
 DEFAULT_GAS_EXPONENT = 1.4
 
@@ -79,7 +73,6 @@ class Priors:
     spread_median: float = 0.03
     spread_log_sd: float = 1.0
     shared: tuple[str, ...] = ()
-    limited: tuple[str, ...] = ()
     noise_scale: float = 0.05
     noise_log_sd: float = 2.0
     source: str = "generic"
@@ -95,16 +88,6 @@ class Priors:
             raise ValueError(f"shared coefficients must be among {COEFFICIENTS}, got {sorted(unknown)}")
         return np.array([0.0 if name in self.shared else 1.0 for name in COEFFICIENTS])
 
-    def spread_prior(self) -> tuple[np.ndarray, np.ndarray]:
-        """(log median, log sd) of each coefficient's between-test spread rho_k, (4,) each."""
-        unknown = set(self.limited) - set(COEFFICIENTS)
-        if unknown:
-            raise ValueError(f"limited coefficients must be among {COEFFICIENTS}, got {sorted(unknown)}")
-        limited = np.array([name in self.limited for name in COEFFICIENTS])
-        loc = np.where(limited, math.log(LIMITED_SPREAD_MEDIAN), math.log(self.spread_median))
-        log_sd = np.where(limited, LIMITED_SPREAD_LOG_SD, self.spread_log_sd)
-        return loc, log_sd
-
     def describe(self) -> dict[str, Any]:
         return {
             "source": self.source,
@@ -112,9 +95,7 @@ class Priors:
             "relative_sd": self.relative_sd,
             "alpha": {"mean": self.alpha_mean, "sd": self.alpha_sd, "low": self.alpha_low, "high": self.alpha_high},
             "between_test_spread": {"median": self.spread_median, "log_sd": self.spread_log_sd,
-                                    "shared": list(self.shared), "limited": list(self.limited),
-                                    "limited_median": LIMITED_SPREAD_MEDIAN,
-                                    "limited_log_sd": LIMITED_SPREAD_LOG_SD},
+                                    "shared": list(self.shared)},
             **({"relations": dict(self.relations)} if self.relations else {}),
         }
 

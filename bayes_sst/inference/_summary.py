@@ -21,7 +21,7 @@ ESS_LIMIT = 400
 NUISANCE_RHAT_LIMIT = 1.1
 NUISANCE_ESS_LIMIT = 20
 # a between-test sd of the moving mass above this share is not physical: it means the sine
-# tests' per-test Me and Ke slid along their ridge (fit refits with that spread limited; summarize warns)
+# tests' per-test Me and Ke slid along their ridge (fit refits with Me shared; summarize warns)
 IMPLAUSIBLE_MASS_SPREAD = 0.10
 
 
@@ -109,14 +109,11 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     converged = not warnings
     refit = json.loads(tree.attrs.get("mass_refit", "") or "null")
     if refit:
-        how = ("Me's between-test spread is limited (prior median 1 %)" if refit.get("mode") == "limited"
-               else "Me is shared by all tests")
         warnings.append(
-            f"{how}: a first fit with the generic spread prior gave a between-test sd of "
-            f"{100 * refit['first_fit_mass_spread']:.0f} % for the moving mass, which a "
-            "table does not do (per-test Me and Ke of the sine tests slide along their ridge when the force noise "
-            "is small against Me times the accelerometer's); the numbers are from the refit (README, known "
-            "limitations)"
+            f"Me is shared by all tests: a first fit with Me varying gave a between-test sd of "
+            f"{100 * refit['first_fit_mass_spread']:.0f} % for the moving mass, which a table does not do (per-test "
+            "Me and Ke of the sine tests slide along their ridge when the force noise is small against Me times "
+            "the accelerometer's); the numbers are from the refit (README, known limitations)"
         )
     me_spread = spread["Me"]["relative_sd_mean"]
     if me_spread > IMPLAUSIBLE_MASS_SPREAD:
