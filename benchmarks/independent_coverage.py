@@ -1,0 +1,73 @@
+"""Fit series of the independent generator (benchmarks/independent_generator.py) with the
+package defaults and compare with their population truth: relative error, 90 % interval
+coverage and z = (mean - truth)/sd per parameter.
+
+    PYTHONPATH=. .venv/bin/python benchmarks/independent_coverage.py --series 24 --dir /tmp/independent \
+        --out benchmarks/results/independent_coverage.json
+
+Series missing from --dir are generated first (about 20 s each).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--series", type=int, default=12)
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--dir", default="/tmp/bayes_sst_independent")
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    sys.path.insert(0, str(HERE))
+    from independent_generator import make_series
+
+    from bayes_sst.inference import fit
+    from bayes_sst.inference._summary import summarize
+    from bayes_sst.io import load_series
+
+    rows = []
+    for seed in range(args.first_seed, args.first_seed + args.series):
+        folder = os.path.join(args.dir, f"s{seed:02d}")
+        if not os.path.exists(os.path.join(folder, "truth.json")):
+            make_series(seed, folder)
+        truth = json.load(open(os.path.join(folder, "truth.json")))["population"]
+        started = time.perf_counter()
+        result = fit(load_series(folder), seed=seed)
+        summary = summarize(result.tree)
+        row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"],
+               "divergences": summary["divergences"], "max_r_hat": summary["max_r_hat"],
+               "mass_refit": bool(result.tree.attrs.get("mass_refit"))}
+        for name in NAMES:
+            p = summary["parameters"][name]
+            row[name] = {"truth": truth[name], "mean": p["mean"], "sd": p["sd"], "q05": p["q05"], "q95": p["q95"],
+                         "covered": bool(p["q05"] <= truth[name] <= p["q95"]), "z": (p["mean"] - truth[name]) / p["sd"]}
+        rows.append(row)
+        cells = "  ".join(
+            (f"{row[n]['mean'] - row[n]['truth']:+.3f}" if n == "alpha" else f"{100 * (row[n]['mean'] / row[n]['truth'] - 1):+5.1f}%")
+            + (" Y" if row[n]["covered"] else " N") for n in NAMES)
+        print(f"seed {seed:3d}  {cells}  R-hat {row['max_r_hat']:.3f}{'  mass refit' if row['mass_refit'] else ''}",
+              flush=True)
+    summary = {}
+    for name in NAMES:
+        z = np.array([r[name]["z"] for r in rows])
+        summary[name] = {"coverage": float(np.mean([r[name]["covered"] for r in rows])),
+                         "z_mean": float(z.mean()), "z_sd": float(z.std(ddof=1))}
+        print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f} sd {z.std(ddof=1):.2f}")
+    if args.out:
+        Path(args.out).write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,169 @@
+"""A second, independently written virtual table: series for checking bayes_sst's fit against
+a generator that shares no code with bayes_sst.twin (written in this project by a separate
+session from the data format and the force equation only).
+
+Per series: Me, Ke, Ce, Fmu within +-20 % of the SST values, alpha in [0.4, 0.8], 200 or
+500 Hz, static/kinetic friction ratio 1.0-1.1. Per test (20): sine or (25 %) rounded triangle,
+0.25-3 Hz log-uniform, peak speed 0.05-0.5 m/s, linear ramp-in of 1-2 cycles, 4-8 steady
+cycles, 1 ramp-out cycle, 0.5 s rest at both ends; Me, Ke, Ce, Fmu times (1 + 0.02 N(0, 1)).
+Deck integrated at 0.2 ms (semi-implicit Euler) under PID + nominal-model feedforward with a
+3 ms first-order actuator lag, stick-slip friction (sticks at each velocity reversal until
+|F_A - Ke u| exceeds Fs). Recorded: instantaneous samples; F with AR(1) noise (10-20 ms,
+300-800 N) + 100 N white + an offset up to 1 kN; u with 20 um white + up to 1 mm offset; a with
+0.05 m/s^2 white. truth.json holds the population and every test's values.
+
+    python benchmarks/independent_generator.py OUT_DIR SEED [SEED ...]
+"""
+import json, math, os, sys
+import numpy as np
+
+REF = dict(Me=13200.0, Ke=7.2e5, Ce=29600.0, alpha=0.5, Fmu=12500.0)
+DT = 2e-4  # integration step, s
+
+
+def shape_fn(kind, w, t, delta):
+    if kind == "sine":
+        return np.sin(w * t)
+    # rounded triangle: arcsin of a slightly shrunk sine, normalised to unit peak
+    return np.arcsin((1 - delta) * np.sin(w * t)) / math.asin(1 - delta)
+
+
+def command(kind, f, A, n_in, n_steady, n_out, delta, pre=0.5, post=0.5):
+    T = 1.0 / f
+    t_motion = (n_in + n_steady + n_out) * T
+    t_total = pre + t_motion + post
+    n = int(round(t_total / DT)) + 1
+    t = np.arange(n) * DT
+    tm = t - pre
+    env = np.clip(tm / (n_in * T), 0, 1)
+    t_end = t_motion
+    env = np.minimum(env, np.clip((t_end - tm) / (n_out * T), 0, 1))
+    env[(tm < 0) | (tm > t_end)] = 0.0
+    u = A * env * shape_fn(kind, 2 * np.pi * f, np.clip(tm, 0, None), delta)
+    v = np.gradient(u, DT)
+    a = np.gradient(v, DT)
+    steady = (pre + n_in * T, pre + (n_in + n_steady) * T)
+    return t, u, v, a, steady
+
+
+def simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal):
+    """Closed loop: PID + model feedforward -> actuator force (first-order lag) -> deck with
+    stick-slip friction.  Returns F_A, u, v, a at every step (force balance exact)."""
+    Me, Ke, Ce, al, Fk = p["Me"], p["Ke"], p["Ce"], p["alpha"], p["Fmu"]
+    Fs = fs_ratio * Fk
+    Mn, Kn, Cn, aln, Fn = nominal
+    wc = 2 * math.pi * 8.0
+    Kp, Kd, Ki = Mn * wc * wc, 2 * 0.7 * wc * Mn, Mn * wc ** 3 / 10
+    tau = 0.003
+    n = len(t)
+    FA_out = np.empty(n); u_out = np.empty(n); v_out = np.empty(n); a_out = np.empty(n)
+    uc_l = uc.tolist(); vc_l = vc.tolist(); ac_l = ac.tolist()
+    u = 0.0; v = 0.0; FA = 0.0; ie = 0.0
+    stuck = True
+    dt = DT
+    k_dt = dt / tau
+    for k in range(n):
+        # controller output at t_k (uses state at t_k), actuator lag
+        vck = vc_l[k]
+        sgn_c = 1.0 if vck > 0 else (-1.0 if vck < 0 else 0.0)
+        ff = Mn * ac_l[k] + Kn * uc_l[k] + (Cn * abs(vck) ** aln + Fn) * sgn_c
+        e = uc_l[k] - u
+        Fc = ff + Kp * e + Kd * (vck - v) + Ki * ie
+        net = FA - Ke * u
+        if stuck:
+            if abs(net) <= Fs:
+                a = 0.0
+            else:
+                stuck = False
+                s = 1.0 if net > 0 else -1.0
+                a = (net - Fk * s) / Me
+        else:
+            s = 1.0 if v > 0 else -1.0
+            a = (net - (Ce * abs(v) ** al + Fk) * s) / Me
+        FA_out[k] = FA; u_out[k] = u; v_out[k] = v; a_out[k] = a
+        # advance
+        if not stuck:
+            vn = v + a * dt
+            if v != 0.0 and vn * v <= 0.0:
+                vn = 0.0
+                stuck = True
+            v = vn
+        u += v * dt
+        ie += e * dt
+        FA += k_dt * (Fc - FA)
+    return FA_out, u_out, v_out, a_out
+
+
+def ar1(rng, n, fs, tc, sd):
+    phi = math.exp(-1.0 / (fs * tc))
+    w = rng.normal(0, sd * math.sqrt(1 - phi * phi), n)
+    x = np.empty(n); x[0] = rng.normal(0, sd)
+    for i in range(1, n):
+        x[i] = phi * x[i - 1] + w[i]
+    return x
+
+
+def make_series(seed, out, n_tests=20):
+    rng = np.random.default_rng(1000 + seed)
+    pop = {k: REF[k] * rng.uniform(0.8, 1.2) for k in ("Me", "Ke", "Ce", "Fmu")}
+    pop["alpha"] = rng.uniform(0.4, 0.8)
+    fs = int(rng.choice([200, 500]))
+    fs_ratio = rng.uniform(1.0, 1.1)
+    ns = float(os.environ.get("GEN_NOISE_SCALE", "1"))
+    noise = dict(F_ar_sd=ns * rng.uniform(300, 800), F_tc=rng.uniform(0.010, 0.020), F_white=ns * 100.0,
+                 u_white=ns * 20e-6, a_white=ns * 0.05)
+    nominal = (REF["Me"], REF["Ke"], REF["Ce"], REF["alpha"], REF["Fmu"])
+    os.makedirs(out, exist_ok=True)
+    tests, truth_tests = [], []
+    step = int(round(1.0 / (fs * DT)))
+    for j in range(n_tests):
+        kind = "triangle" if rng.random() < 0.25 else "sine"
+        f = float(np.exp(rng.uniform(np.log(0.25), np.log(3.0))))
+        vmax = rng.uniform(0.05, 0.5)
+        gain = 4.0 if kind == "triangle" else 2 * np.pi
+        A = min(vmax / (gain * f), 0.1)
+        A = float(max(A, 0.005))
+        if gain * f * A > 0.5:
+            A = 0.5 / (gain * f)
+        A = round(A, 4)
+        n_in = int(rng.integers(1, 3)); n_steady = int(rng.integers(4, 9)); n_out = 1
+        delta = rng.uniform(0.01, 0.03)
+        p = {k: pop[k] * (1 + 0.02 * rng.normal()) for k in ("Me", "Ke", "Ce", "Fmu")}
+        p["alpha"] = pop["alpha"]
+        t, uc, vc, ac, steady = command(kind, f, A, n_in, n_steady, n_out, delta)
+        FA, u, v, a = simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal)
+        idx = np.arange(0, len(t), step)
+        ts, Fs_, us, vs, as_ = t[idx], FA[idx], u[idx], v[idx], a[idx]
+        n = len(idx)
+        off_F = rng.uniform(-1000, 1000); off_u = rng.uniform(-1e-3, 1e-3)
+        F_rec = Fs_ + ar1(rng, n, fs, noise["F_tc"], max(noise["F_ar_sd"], 1e-9)) + rng.normal(0, noise["F_white"], n) + off_F
+        u_rec = us + rng.normal(0, noise["u_white"], n) + off_u
+        a_rec = as_ + rng.normal(0, noise["a_white"], n)
+        tid = f"T{j + 1:02d}"
+        fname = f"{tid}.csv"
+        with open(os.path.join(out, fname), "w") as fh:
+            fh.write("t,u,F,a\n")
+            for row in zip(ts, u_rec, F_rec, a_rec):
+                fh.write("%.6f,%.9e,%.9e,%.9e\n" % row)
+        tests.append({"id": tid, "file": fname, "kind": kind, "frequency_hz": round(f, 6),
+                      "amplitude_m": A, "payload_kg": 0, "order": j + 1})
+        track = float(np.max(np.abs(u - uc)))
+        truth_tests.append(dict(id=tid, params=p, steady_s=steady, n_in=n_in, n_steady=n_steady,
+                                kind=kind, f=f, A=A, peak_v=float(np.max(np.abs(v))),
+                                tracking_max_err=track, fs=fs,
+                                stuck_share=float(np.mean(v == 0.0))))
+    manifest = {"format": "sst-series/1", "name": f"probe-{seed}",
+                "table": {"deck_mass_kg": 12000, "strut": {"p0_pa": 6.9e6, "area_m2": 0.0314,
+                                                           "h_m": 1.2, "l0_m": 0.8, "gamma": 1.4}},
+                "tests": tests}
+    with open(os.path.join(out, "series.json"), "w") as fh:
+        json.dump(manifest, fh, indent=1)
+    with open(os.path.join(out, "truth.json"), "w") as fh:
+        json.dump(dict(seed=seed, population=pop, fs=fs, fs_ratio=fs_ratio, noise=noise,
+                       tests=truth_tests), fh, indent=1)
+
+
+if __name__ == "__main__":
+    for s in map(int, sys.argv[2:]):
+        make_series(s, os.path.join(sys.argv[1], f"s{s:02d}"))
+        print("done", s, flush=True)
