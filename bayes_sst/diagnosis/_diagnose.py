@@ -124,10 +124,8 @@ class Diagnosis:
 def full_rate_residual(test: EffectData, fit: ModelFit, j: int) -> np.ndarray:
     """e = F - m_payload*a - X theta_j at every full-rate sample (base coefficients only)."""
     theta = fit.theta[j][:4]
-    v = test.v_full
-    damping = test.filtered_full(np.abs(v) ** fit.alpha * np.sign(v))
-    sign = test.friction_load * test.filtered_full(np.sign(v))
-    model = theta[0] * test.a_full + theta[1] * test.u_full + theta[2] * damping + theta[3] * sign
+    model = (theta[0] * test.a_full + theta[1] * test.u_full + theta[2] * test.damping_full(fit.alpha)
+             + theta[3] * test.sign_full())
     return test.F_full - test.payload_kg * test.a_full - model
 
 

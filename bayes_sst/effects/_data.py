@@ -81,14 +81,22 @@ class EffectData:
         """filter(g) at every full-rate sample."""
         return zero_phase_lowpass(values, self.cutoff_hz, self.sample_rate_hz, axis=-1)
 
+    def damping_full(self, alpha: float) -> np.ndarray:
+        """filter(|v|^alpha sign v) at every full-rate sample."""
+        return self.filtered_full(np.abs(self.v_full) ** alpha * np.sign(self.v_full))
+
+    def sign_full(self) -> np.ndarray:
+        """friction_load*filter(sign v) at every full-rate sample: the Coulomb regressor of the
+        empty table's Fmu."""
+        return self.friction_load * self.filtered_full(np.sign(self.v_full))
+
     def damping(self, alpha: float) -> np.ndarray:
-        """filter(|v|^alpha sign v) at the kept samples."""
-        return self.filtered(np.abs(self.v_full) ** alpha * np.sign(self.v_full))
+        """damping_full(alpha) at the kept samples."""
+        return self.damping_full(alpha)[self.kept]
 
     def sign(self) -> np.ndarray:
-        """friction_load*filter(sign v) at the kept samples: the Coulomb regressor of the empty
-        table's Fmu."""
-        return self.friction_load * self.filtered(np.sign(self.v_full))
+        """sign_full() at the kept samples."""
+        return self.sign_full()[self.kept]
 
     def force_at(self, shift_s: float) -> np.ndarray:
         """The filtered force read shift_s later than the kept instants, F(t + shift), by linear interpolation."""

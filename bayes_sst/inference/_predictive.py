@@ -11,7 +11,7 @@ bayes_sst.inference._statistics, and e started from its stationary law sd sigma/
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -34,9 +34,9 @@ def run_signal_options(tree) -> SignalOptions:
     """The signal options a run was fitted with (defaults for runs that did not record them).
 
     A run whose options predate the reversal weight (no "reversal_window" key) or the
-    synchronous average of a (no "periodic_acceleration") or the removal of the steady
-    window's offsets (no "remove_offsets") was fitted without it, and is
-    re-prepared without it.
+    synchronous average of a (no "periodic_acceleration"), the removal of the steady window's
+    offsets (no "remove_offsets") or the payload's friction load (no "payload_friction") was
+    fitted without it, and is re-prepared without it.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -45,6 +45,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("reversal_window", False)
     recorded.setdefault("periodic_acceleration", False)
     recorded.setdefault("remove_offsets", False)
+    recorded.setdefault("payload_friction", False)
     return SignalOptions(**recorded)
 
 
@@ -62,9 +63,6 @@ def run_prepared(tree, series=None) -> list[PreparedTest]:
             raise ValueError("the run does not record its series folder; pass the series explicitly")
         series = load_series(path)
     prepared = {t.id: t for t in prepare_series(series, run_signal_options(tree))}
-    if "friction_load" not in tree["constant_data"]:
-        # fitted before the Coulomb regressor was scaled by the payload's load: as it was fitted
-        prepared = {k: replace(t, friction_load=1.0) for k, t in prepared.items()}
     wanted = [str(t) for t in tree["posterior"]["test"].values]
     missing = [t for t in wanted if t not in prepared]
     if missing:

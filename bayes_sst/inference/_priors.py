@@ -39,13 +39,13 @@ table ended with divergences or R-hat above 1.01 (a chain stuck at rho_Ce near 0
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 import numpy as np
 
 from bayes_sst.inference._statistics import ALPHA_MAX, ALPHA_MIN, COEFFICIENTS
+from bayes_sst.io import positive_number
 from bayes_sst.physics import (
     STANDARD_GRAVITY,
     coulomb_friction,
@@ -101,7 +101,7 @@ class Priors:
 
 
 def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0
+    return positive_number(x) is not None
 
 
 def _moving_mass(table: Mapping[str, Any]) -> tuple[float | None, str, dict[str, float]]:

@@ -46,12 +46,11 @@ Treatment, for each periodic test of fundamental f sampled at fs:
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from collections.abc import Mapping
 from typing import Callable
 
 import numpy as np
 
-from bayes_sst.io import Series, SeriesFormatError, TestRecord
+from bayes_sst.io import Series, SeriesFormatError, TestRecord, table_number
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import time_derivative, zero_phase_lowpass
@@ -79,6 +78,8 @@ class SignalOptions:
         cycle-synchronous average over whole-sample cycle shifts (periodic_component).
     remove_offsets : subtract from F, u, a (and a measured v) their means over the steady
         window's whole cycles (sensor zero offsets; see without_steady_offsets).
+    payload_friction : scale each test's Coulomb regressor by its bearing-load ratio
+        (friction_load), so that every test's Fmu is the empty table's.
     """
 
     cutoff_multiple: float = 4.0
@@ -92,6 +93,7 @@ class SignalOptions:
     reversal_taper: float = 0.1
     periodic_acceleration: bool = True
     remove_offsets: bool = True
+    payload_friction: bool = True
 
 
 @dataclass(frozen=True)
@@ -153,14 +155,6 @@ class PreparedTest:
         return self.friction_load * self.regressor(np.sign)
 
 
-def _positive_number(value) -> float | None:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return None
-    return number if np.isfinite(number) and number > 0 else None
-
-
 def friction_load(table, payload_kg: float) -> float:
     """N_test/N_empty = (F_hd + (m_deck + m_payload)*g)/(F_hd + m_deck*g) from the series' table
     description (strut.p0_pa, strut.area_m2 give F_hd = 4*p0*A; deck_mass_kg); 1.0 without a
@@ -175,10 +169,8 @@ def friction_load(table, payload_kg: float) -> float:
     """
     if not payload_kg:
         return 1.0
-    table = table if isinstance(table, Mapping) else {}
-    strut = table.get("strut") if isinstance(table.get("strut"), Mapping) else {}
-    p0, area = _positive_number(strut.get("p0_pa")), _positive_number(strut.get("area_m2"))
-    deck = _positive_number(table.get("deck_mass_kg"))
+    p0, area = table_number(table, "strut", "p0_pa"), table_number(table, "strut", "area_m2")
+    deck = table_number(table, "deck_mass_kg")
     if p0 is None or area is None or deck is None:
         return 1.0
     return float(friction_load_ratio(hold_down_force(p0, area), deck, float(payload_kg)))
@@ -353,8 +345,9 @@ def prepare_series(series: Series, options: SignalOptions = SignalOptions()) -> 
     for record in series.periodic_tests:
         source = str(series.path / record.spec.file) if series.path else record.spec.file
         test = prepare_test(record, options, source=source)
-        load = friction_load(series.table, test.payload_kg)
-        prepared.append(test if load == 1.0 else replace(test, friction_load=load))
+        if options.payload_friction:
+            test = replace(test, friction_load=friction_load(series.table, test.payload_kg))
+        prepared.append(test)
     if not prepared:
         raise SeriesFormatError(
             series.path or series.name, "tests", "no sine or triangle test to identify the force model from"

@@ -18,6 +18,7 @@ from typing import Any, Mapping
 from bayes_sst.physics import (
     STANDARD_GRAVITY,
     coulomb_friction,
+    friction_load_ratio,
     hold_down_force,
     normal_force,
     oil_column_frequency,
@@ -143,9 +144,7 @@ class TableTruth:
 
     def friction_with_payload(self, fmu: float, payload_kg: float) -> float:
         """Fmu_test = Fmu*(F_hd + (m_deck + payload)*g)/(F_hd + m_deck*g): the bearings carry the payload too."""
-        empty = normal_force(self.hold_down_force, self.deck_mass)
-        loaded = normal_force(self.hold_down_force, self.deck_mass + payload_kg)
-        return fmu * loaded / empty
+        return fmu * friction_load_ratio(self.hold_down_force, self.deck_mass, payload_kg)
 
     def f_oil_hz(self, moving_mass: float | None = None) -> float:
         """Oil-column resonance (1/2pi)*sqrt(2*beta*A_p^2/(V*M)) with M = Me unless given, Hz."""
