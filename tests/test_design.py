@@ -200,7 +200,7 @@ def test_engine_likelihood_equals_the_fits_collapsed_likelihood(example_tests):
         sig = sigma * lm.force_scale / force_scale
         total_c, total_h, total_H = 0.0, np.zeros(4), np.zeros((4, 4))
         for j, test in enumerate(example_tests):
-            cols = regressor_columns(test, grid, scale, force_scale)
+            cols = regressor_columns(test, grid, scale, force_scale, lm.noise_mass_kg)
             m, s = lagged(cols, (test.F - test.payload_kg * test.a) / force_scale)
             W = whiten(hermite(m, s, grid, np.array([alpha])), np.array([phi[j]]))[0]
             t = collapsed_terms(W, cols.n_pairs, np.array(sig[j]), rho)

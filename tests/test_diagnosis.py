@@ -41,6 +41,42 @@ def test_noise_floor_of_a_periodic_signal_is_the_noise_sd():
     assert noise_floor(test, residual) == pytest.approx(50.0, rel=0.1)
 
 
+def test_an_effect_that_removes_no_excess_is_not_selected():
+    """The shrink gate: a large elpd score alone (here 25 nats over 20 tests, four of them
+    carrying it, as a spurious specimen did on an independent generator's clean series) does
+    not select an effect whose model leaves the residual's excess over the floor in place;
+    an effect that acts between tests (drift) is exempt, the per-test coefficients absorbing it
+    in-sample."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._diagnose import MIN_SHRINK, _entry, _explains, _selectable
+    from bayes_sst.effects import FORCE_EFFECTS
+
+    floor = 384.0
+    assert not _explains(757.0, 759.0, floor)  # the RMS rose: nothing explained
+    # 2 % of the excess mean square is the line; 1 % is not enough, 5 % is
+    excess = 757.0**2 - floor**2
+    assert not _explains(757.0, math.sqrt(757.0**2 - 0.01 * excess), floor)
+    assert _explains(757.0, math.sqrt(757.0**2 - 0.05 * excess), floor)
+    assert MIN_SHRINK == pytest.approx(0.02)
+    # at or below the floor estimate only a lower RMS counts
+    assert _explains(334.0, 330.0, 340.0) and not _explains(334.0, 334.5, 340.0)
+
+    diff = np.array([7.7, 3.8, 0.5, -0.2, -0.1, 0.3, -0.6, -1.5, 10.4, -0.2,
+                     0.3, 0.6, -1.5, 7.7, -2.3, -0.2, 0.1, 0.2, -0.4, 0.7])
+    by_name = {e.name: e for e in FORCE_EFFECTS}
+
+    def score(name):
+        return SimpleNamespace(effect=by_name[name], score=float(diff.sum()), score_se=15.2, params={},
+                               fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=diff)
+
+    for name, explains, selected in (("specimen", True, True), ("specimen", False, False), ("drift", False, True)):
+        s = score(name)
+        entry = dict(_entry(s), explains=explains)
+        assert entry["z_loss"] >= 5.0  # the rule that let the specimen through
+        assert _selectable(s, entry) is selected, (name, explains)
+
+
 @pytest.fixture(scope="module")
 def clean_diagnosis():
     series = simulate("sst-paper", seed=11, spread=0.02, plan=SHORT_PLAN)

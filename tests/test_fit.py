@@ -146,6 +146,10 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).periodic_acceleration
     older = {k: v for k, v in current.items() if k != "periodic_acceleration"}
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).periodic_acceleration is False
+    # and runs from before the accelerometer's noise estimate without it
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).accelerometer_noise
+    older = {k: v for k, v in current.items() if k != "accelerometer_noise"}
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).accelerometer_noise is False
 
 
 def _white_force_noise_series():
@@ -157,14 +161,14 @@ def _white_force_noise_series():
 
 def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_a_shared_mass():
     """With only white force noise and the accelerometer read as recorded (no synchronous
-    average), the accelerometer's noise (times Me) dominates the slow sine tests' residual,
+    average, no noise correction), the accelerometer's noise (times Me) dominates the slow sine tests' residual,
     and their per-test Me slides along the Me-Ke ridge toward 0 (population Me -43 %, its
     between-test sd 73 %). fit must notice the implausible mass spread, refit with Me shared
     (this series' mass is the same in every test) and say so in the summary; without the
     automatic refit the failure is visible and flagged."""
     series = _white_force_noise_series()
     truth = series.extra["truth"]["Me"]
-    as_recorded = SignalOptions(periodic_acceleration=False)
+    as_recorded = SignalOptions(periodic_acceleration=False, accelerometer_noise=False)
     raw = summarize(fit(series, seed=1, auto_share_mass=False, signals=as_recorded).tree)
     assert raw["between_test_spread"]["Me"]["relative_sd_mean"] > 0.10
     assert raw["parameters"]["Me"]["mean"] < 0.9 * truth  # the failure itself

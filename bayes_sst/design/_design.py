@@ -237,8 +237,10 @@ def design(
     say(f"{len(prepared)} recorded tests, {post.n_draws} posterior draws, {len(accepted)} candidates "
         f"({len(rejected)} outside the limits), alpha grid {grid[0]:.3f}-{grid[-1]:.3f}")
 
+    noise_mass = float(np.mean(post.mu[:, 0]) * post.scale[0])
+
     def columns_of(test):
-        return regressor_columns(test, grid, post.scale, post.force_scale)
+        return regressor_columns(test, grid, post.scale, post.force_scale, noise_mass)
 
     old_columns = [columns_of(t) for t in prepared]
     responses = [(t.F - t.payload_kg * t.a) / post.force_scale for t in prepared]

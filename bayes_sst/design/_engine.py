@@ -39,6 +39,7 @@ from bayes_sst.inference._statistics import (
     ALPHA_MIN,
     ALPHA_STEP,
     COEFFICIENTS,
+    acceleration_noise_correction,
     pair_moments,
     response_moments,
     scaled_regressors,
@@ -125,7 +126,10 @@ class TestColumns(NamedTuple):
 
     X (G, 4, n): (a, u, filter(|v|^alpha sign v), filter(sign v)) * scale / force_scale at
     the kept samples; dX (G, 4, n) their alpha-derivative (only the damping column moves);
-    valid (n-1,) 1 for consecutive pairs that both enter the likelihood.
+    valid (n-1,) 1 for consecutive pairs that both enter the likelihood. source, scale,
+    force_scale, noise_mass_kg: the prepared test and units they came from and the plug-in
+    mass, so that `lagged` can take the accelerometer's noise out of a recorded test's moments
+    as the fit does (inference._statistics.acceleration_noise_correction).
     """
 
     __test__ = False
@@ -134,21 +138,36 @@ class TestColumns(NamedTuple):
     dX: np.ndarray
     valid: np.ndarray
     grid: np.ndarray
+    source: PreparedTest | None = None
+    scale: np.ndarray | None = None
+    force_scale: float = 1.0
+    noise_mass_kg: float = float("nan")
 
     @property
     def n_pairs(self) -> float:
         return float(self.valid.sum())
 
 
-def regressor_columns(test: PreparedTest, grid: np.ndarray, scale: np.ndarray, force_scale: float) -> TestColumns:
-    """TestColumns of a prepared (recorded or candidate) test: the fit's scaled regressors."""
-    return TestColumns(*scaled_regressors(test, grid, scale, force_scale), grid)
+def regressor_columns(test: PreparedTest, grid: np.ndarray, scale: np.ndarray, force_scale: float,
+                      noise_mass_kg: float | None = None) -> TestColumns:
+    """TestColumns of a prepared (recorded or candidate) test: the fit's scaled regressors.
+    noise_mass_kg: Me for the accelerometer-noise correction (None: the scale of Me)."""
+    scale = np.asarray(scale, dtype=float)
+    mass = float(scale[0] if noise_mass_kg is None else noise_mass_kg)
+    return TestColumns(*scaled_regressors(test, grid, scale, force_scale), grid, test, scale, float(force_scale), mass)
 
 
 def lagged(columns: TestColumns, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Lagged moments (G, 3, 5, 5) of z = (y, x) and their alpha-slopes, for a scaled response y (n,)
-    (y a function of the test only, not of alpha)."""
-    return response_moments(y, columns.X, columns.dX, columns.valid)
+    (y a function of the test only, not of alpha); for a recorded test with a known
+    accelerometer noise, less that noise's share (inference._statistics.acceleration_noise_correction)."""
+    moments, slopes = response_moments(y, columns.X, columns.dX, columns.valid)
+    source = columns.source
+    if source is not None and source.acceleration_noise_sd > 0.0:
+        moments = moments - acceleration_noise_correction(
+            source, moments, columns.valid, columns.grid, columns.scale, columns.force_scale, columns.noise_mass_kg
+        )[None]
+    return moments, slopes
 
 
 def hermite(values: np.ndarray, slopes: np.ndarray, grid: np.ndarray, alpha: np.ndarray) -> np.ndarray:

@@ -35,8 +35,9 @@ def run_signal_options(tree) -> SignalOptions:
 
     A run whose options predate the reversal weight (no "reversal_window" key) or the
     synchronous average of a (no "periodic_acceleration"), the removal of the steady window's
-    offsets (no "remove_offsets") or the payload's friction load (no "payload_friction") was
-    fitted without it, and is re-prepared without it.
+    offsets (no "remove_offsets"), the payload's friction load (no "payload_friction") or the
+    accelerometer's noise estimate (no "accelerometer_noise") was fitted without it, and is
+    re-prepared without it.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -46,6 +47,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("periodic_acceleration", False)
     recorded.setdefault("remove_offsets", False)
     recorded.setdefault("payload_friction", False)
+    recorded.setdefault("accelerometer_noise", False)
     return SignalOptions(**recorded)
 
 

@@ -101,14 +101,14 @@ def periodic_component(x, window: CycleWindow) -> np.ndarray:
     (200 Hz and 0.25, 0.5, 1, 2 Hz) every cycle counts; T = 800/3 samples (0.75 Hz) averages
     cycles three apart; T with no whole multiple in the window leaves x unchanged.
     What repeats every period passes unchanged; noise that does not repeat keeps 1/|M| of its
-    variance. Returns x_p over [start, stop).
+    variance. Returns x_p over [start, stop); x may carry leading axes (time last).
     """
     x = np.asarray(x, dtype=float)
     period = window.period_samples
     n = window.n_cycles
     offsets = np.arange(window.stop - window.start)
     cycle = np.minimum(np.floor(offsets / period).astype(int), n - 1)
-    total = np.zeros(len(offsets))
+    total = np.zeros(x.shape[:-1] + (len(offsets),))
     count = np.zeros(len(offsets))
     for lag in range(-(n - 1), n):
         shift = lag * period
@@ -116,7 +116,7 @@ def periodic_component(x, window: CycleWindow) -> np.ndarray:
         if abs(shift - whole) > WHOLE_SAMPLE_TOLERANCE:
             continue
         members = (cycle + lag >= 0) & (cycle + lag < n)
-        position = np.clip(window.start + offsets + whole, 0, len(x) - 1)
-        total[members] += x[position[members]]
+        position = np.clip(window.start + offsets + whole, 0, x.shape[-1] - 1)
+        total[..., members] += x[..., position[members]]
         count[members] += 1.0
     return total / count

@@ -36,7 +36,11 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    small harmonics of a, where the noise weighs most: single-test least squares on a
    randomised twin series put Me 20-100 % low. Skipped when u's fundamental slips by more
    than a quarter sample over the window (the motion's period is not the test frequency's).
-   See README, known limitations.
+   The average only reaches cycles a whole number of samples apart, so at most test
+   frequencies it leaves much or all of the noise; the noise's level is therefore also read
+   off the record (white_noise_sd of a less its low-pass, mid-stroke), and the inference
+   subtracts what that noise adds to its moments (inference.lagged_moments, errors in
+   variables). See README, known limitations.
 6. Decimation. Inside the steady window every D-th sample is kept, D chosen so the kept
    rate is about 2*fc: the filtered residual is then close to white over the kept band and
    an AR(1) term can model what colour remains, instead of facing the steep roll-off of a
@@ -54,8 +58,11 @@ from bayes_sst.io import Series, SeriesFormatError, TestRecord, table_number
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import time_derivative, zero_phase_lowpass
+from bayes_sst.signals._noise import white_noise_sd
 
 MIN_STEADY_CYCLES = 3
+# the accelerometer's noise is read where the speed is at least this share of its peak
+NOISE_SPEED_SHARE = 0.6
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,9 @@ class SignalOptions:
         window's whole cycles (sensor zero offsets; see without_steady_offsets).
     payload_friction : scale each test's Coulomb regressor by its bearing-load ratio
         (friction_load), so that every test's Fmu is the empty table's.
+    accelerometer_noise : estimate the white noise of a measured acceleration
+        (acceleration_noise_sd), so that the likelihood's moments can be rid of what that
+        noise adds to them (inference.lagged_moments, errors in variables).
     """
 
     cutoff_multiple: float = 4.0
@@ -94,6 +104,7 @@ class SignalOptions:
     periodic_acceleration: bool = True
     remove_offsets: bool = True
     payload_friction: bool = True
+    accelerometer_noise: bool = True
 
 
 @dataclass(frozen=True)
@@ -127,6 +138,8 @@ class PreparedTest:
     velocity_full: np.ndarray
     weight_full: np.ndarray | None = None
     friction_load: float = 1.0  # N_test/N_empty, see friction_load
+    acceleration_noise_sd: float = 0.0  # white noise of the recorded a (m/s^2); 0: none known
+    acceleration_averaged: bool = False  # a replaced by its cycle-synchronous average
 
     @property
     def n_kept(self) -> int:
@@ -147,6 +160,26 @@ class PreparedTest:
             values = values * self.weight_full[lo:hi]
         filtered = zero_phase_lowpass(values, self.cutoff_hz, self.sample_rate_hz, axis=-1)
         return filtered[..., self.index - lo]
+
+    def acceleration_noise(self, n_draws: int, seed: int = 0) -> np.ndarray:
+        """(n_draws, len(index)) draws of white noise of sd acceleration_noise_sd treated
+        exactly as the recorded acceleration was: cycle-synchronous average (when it was
+        applied), reversal weight, low-pass, decimation. What the accelerometer's noise adds to
+        `a`, for the errors-in-variables correction of the moments; zeros when none is known.
+        """
+        if self.acceleration_noise_sd <= 0.0:
+            return np.zeros((n_draws, len(self.index)))
+        margin = int(np.ceil(4.0 * self.sample_rate_hz / self.cutoff_hz))
+        lo = max(0, self.window.start - margin)
+        hi = min(len(self.velocity_full), self.window.stop + margin)
+        noise = np.random.default_rng(seed).normal(0.0, self.acceleration_noise_sd, (n_draws, hi - lo))
+        if self.acceleration_averaged:
+            local = self.window._replace(start=self.window.start - lo, stop=self.window.stop - lo)
+            noise[:, local.start : local.stop] = periodic_component(noise, local)
+        if self.weight_full is not None:
+            noise = noise * self.weight_full[lo:hi]
+        filtered = zero_phase_lowpass(noise, self.cutoff_hz, self.sample_rate_hz, axis=-1)
+        return filtered[:, self.index - lo]
 
     @property
     def friction_sign(self) -> np.ndarray:
@@ -300,9 +333,11 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     # weight, folds into the band: Fmu -10.5 % on seed 2, against -5.2 % with a).
     a_raw = measured_a if measured_a is not None else time_derivative(v_f, fs)
 
+    averaged = False
     if measured_a is not None and options.periodic_acceleration and _holds_its_period(u_f, record.t, f, window):
         a_raw = np.array(measured_a, dtype=float)
         a_raw[window.start : window.stop] = periodic_component(a_raw, window)
+        averaged = True
     decimation = max(1, int(fs / (options.samples_per_cutoff * cutoff)))
     index = np.arange(window.start, window.stop, decimation)
     speed = np.abs(v_f[window.start : window.stop])
@@ -310,6 +345,14 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     keep = np.abs(v_f[index]) >= options.reversal_band * peak_speed
     weight = reversal_weight(v_f, peak_speed, options)
     weighted = not np.all(weight == 1.0)
+    noise_sd = 0.0
+    if measured_a is not None and options.accelerometer_noise:
+        # mid-stroke only: the friction step and a triangle's turn put the acceleration's own
+        # sharp features near the reversals
+        # and less the motion's band, whose curvature shows in second differences at high f/fs
+        measured_a = np.asarray(measured_a, dtype=float)
+        above_band = (measured_a - zero_phase_lowpass(measured_a, cutoff, fs))[window.start : window.stop]
+        noise_sd = white_noise_sd(above_band, where=speed >= NOISE_SPEED_SHARE * peak_speed)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
     u_model = zero_phase_lowpass(record.u * weight, cutoff, fs) if weighted else u_f
@@ -336,6 +379,8 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         keep=keep,
         velocity_full=v_f,
         weight_full=weight if weighted else None,
+        acceleration_noise_sd=noise_sd,
+        acceleration_averaged=averaged,
     )
 
 

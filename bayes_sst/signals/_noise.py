@@ -1,0 +1,37 @@
+"""Sensor noise levels read off a recorded channel."""
+
+from __future__ import annotations
+
+import numpy as np
+
+# sd of a standard normal from the median absolute deviation
+MAD_TO_SD = 1.482602218505602
+MIN_SAMPLES = 50
+
+
+def white_noise_sd(x, where=None) -> float:
+    """sd of the white noise on a sampled channel, from its second differences:
+
+        d_t = x_(t+1) - 2 x_t + x_(t-1),   var(d) = 6 sigma^2 for white noise of sd sigma,
+        sigma = 1.4826 * median|d - median(d)| / sqrt(6).
+
+    Why second differences: a motion sampled well above its frequency is nearly a straight line
+    over three samples, so d is the noise; a 3 Hz sine at 200 Hz still leaves 1 % of its
+    amplitude in d, so callers pass the record less its low-pass (prepare_test: at the analysis
+    cut-off), which leaves the noise's second differences all but whole. Why the median: the friction step of an accelerometer at each velocity reversal puts
+    a few large d per cycle, which an ordinary sd would count as noise. Noise that is coloured
+    below the sample rate (an anti-alias filter, a slow drift) shows less in d than it holds, so
+    this reads low for it, never high.
+
+    where (same length as x): use only the d centred on these samples, when at least
+    MIN_SAMPLES of them are marked.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size < 5:
+        return 0.0
+    d = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    if where is not None:
+        chosen = np.asarray(where, dtype=bool)[1:-1]
+        if chosen.sum() >= MIN_SAMPLES:
+            d = d[chosen]
+    return float(MAD_TO_SD * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
