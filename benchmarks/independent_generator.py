@@ -12,6 +12,15 @@ Deck integrated at 0.2 ms (semi-implicit Euler) under PID + nominal-model feedfo
 300-800 N) + 100 N white + an offset up to 1 kN; u with 20 um white + up to 1 mm offset; a with
 0.05 m/s^2 white. truth.json holds the population and every test's values.
 
+Optional withheld effects (make_series(..., effects={...}); none by default), each written
+from its physics here, not from bayes_sst.twin:
+  force_delay d (s): F recorded as F(t - d);
+  specimen_mass, specimen_frequency, specimen_damping: an SDOF specimen on the deck whose base
+      shear m_s*(a + x'') = -m_s*(2 zeta w x' + w^2 x) loads it, x'' + 2 zeta w x' + w^2 x = -a;
+  cubic_stiffness K3 (N/m): strut force Ke*u + K3*(u/h)^2*u, h = 1.2 m;
+  hinge_friction Fp (N): kinetic (and static) friction level Fk + Fp*(u/h)^2;
+  drift: Fmu and Ce of test j multiplied by 1 - drift*j/(n-1).
+
     python benchmarks/independent_generator.py OUT_DIR SEED [SEED ...]
 """
 import json, math, os, sys
@@ -46,11 +55,20 @@ def command(kind, f, A, n_in, n_steady, n_out, delta, pre=0.5, post=0.5):
     return t, u, v, a, steady
 
 
-def simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal):
+STRUT_H = 1.2  # m, the strut length of the written table description
+
+
+def simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal, effects=None):
     """Closed loop: PID + model feedforward -> actuator force (first-order lag) -> deck with
     stick-slip friction.  Returns F_A, u, v, a at every step (force balance exact)."""
-    Me, Ke, Ce, al, Fk = p["Me"], p["Ke"], p["Ce"], p["alpha"], p["Fmu"]
-    Fs = fs_ratio * Fk
+    effects = effects or {}
+    Me, Ke, Ce, al, Fk0 = p["Me"], p["Ke"], p["Ce"], p["alpha"], p["Fmu"]
+    K3 = effects.get("cubic_stiffness", 0.0) / STRUT_H ** 2
+    Fp = effects.get("hinge_friction", 0.0) / STRUT_H ** 2
+    ms = effects.get("specimen_mass", 0.0)
+    ws = 2 * math.pi * effects.get("specimen_frequency", 10.0)
+    zs = effects.get("specimen_damping", 0.03)
+    x = xd = 0.0
     Mn, Kn, Cn, aln, Fn = nominal
     wc = 2 * math.pi * 8.0
     Kp, Kd, Ki = Mn * wc * wc, 2 * 0.7 * wc * Mn, Mn * wc ** 3 / 10
@@ -69,7 +87,10 @@ def simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal):
         ff = Mn * ac_l[k] + Kn * uc_l[k] + (Cn * abs(vck) ** aln + Fn) * sgn_c
         e = uc_l[k] - u
         Fc = ff + Kp * e + Kd * (vck - v) + Ki * ie
-        net = FA - Ke * u
+        Fk = Fk0 + Fp * u * u
+        Fs = fs_ratio * Fk
+        shear = -ms * (2 * zs * ws * xd + ws * ws * x)  # m_s*(a + x''), what the specimen takes
+        net = FA - Ke * u - K3 * u * u * u - shear
         if stuck:
             if abs(net) <= Fs:
                 a = 0.0
@@ -81,6 +102,10 @@ def simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal):
             s = 1.0 if v > 0 else -1.0
             a = (net - (Ce * abs(v) ** al + Fk) * s) / Me
         FA_out[k] = FA; u_out[k] = u; v_out[k] = v; a_out[k] = a
+        if ms > 0.0:
+            xdd = -a - 2 * zs * ws * xd - ws * ws * x
+            xd += xdd * dt
+            x += xd * dt
         # advance
         if not stuck:
             vn = v + a * dt
@@ -103,7 +128,7 @@ def ar1(rng, n, fs, tc, sd):
     return x
 
 
-def make_series(seed, out, n_tests=20):
+def make_series(seed, out, n_tests=20, effects=None):
     rng = np.random.default_rng(1000 + seed)
     pop = {k: REF[k] * rng.uniform(0.8, 1.2) for k in ("Me", "Ke", "Ce", "Fmu")}
     pop["alpha"] = rng.uniform(0.4, 0.8)
@@ -130,10 +155,14 @@ def make_series(seed, out, n_tests=20):
         delta = rng.uniform(0.01, 0.03)
         p = {k: pop[k] * (1 + 0.02 * rng.normal()) for k in ("Me", "Ke", "Ce", "Fmu")}
         p["alpha"] = pop["alpha"]
+        drift = (effects or {}).get("drift", 0.0) * j / (n_tests - 1)
+        p["Ce"] *= 1 - drift
+        p["Fmu"] *= 1 - drift
         t, uc, vc, ac, steady = command(kind, f, A, n_in, n_steady, n_out, delta)
-        FA, u, v, a = simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal)
+        FA, u, v, a = simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal, effects)
         idx = np.arange(0, len(t), step)
-        ts, Fs_, us, vs, as_ = t[idx], FA[idx], u[idx], v[idx], a[idx]
+        ts, us, vs, as_ = t[idx], u[idx], v[idx], a[idx]
+        Fs_ = np.interp(ts - (effects or {}).get("force_delay", 0.0), t, FA)
         n = len(idx)
         off_F = rng.uniform(-1000, 1000); off_u = rng.uniform(-1e-3, 1e-3)
         F_rec = Fs_ + ar1(rng, n, fs, noise["F_tc"], max(noise["F_ar_sd"], 1e-9)) + rng.normal(0, noise["F_white"], n) + off_F
@@ -160,7 +189,7 @@ def make_series(seed, out, n_tests=20):
         json.dump(manifest, fh, indent=1)
     with open(os.path.join(out, "truth.json"), "w") as fh:
         json.dump(dict(seed=seed, population=pop, fs=fs, fs_ratio=fs_ratio, noise=noise,
-                       tests=truth_tests), fh, indent=1)
+                       effects=effects or {}, tests=truth_tests), fh, indent=1)
 
 
 if __name__ == "__main__":

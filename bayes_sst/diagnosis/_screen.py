@@ -35,6 +35,7 @@ class EffectScore:
     diff: np.ndarray
     grid_profile: list = field(default_factory=list)
     at_bound: bool = False
+    amplitude_z: float = float("inf")  # largest |coefficient|/sd of the effect's linear terms
 
     @property
     def z(self) -> float:
@@ -92,5 +93,6 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     if at_bound:
         # the physical fit sits at the bound (coefficient 0): the base model itself
         score, se, diff, fit = 0.0, 0.0, np.zeros_like(diff), current
+    amplitude_z = float(np.max(np.abs(coef) / np.maximum(coef_sd, 1e-300))) if k else float("inf")
     return EffectScore(effect, best_setting, score, se, params, fit, diff,
-                       [(dict(s), float(lm)) for s, lm in profile], at_bound)
+                       [(dict(s), float(lm)) for s, lm in profile], at_bound, amplitude_z)

@@ -38,10 +38,7 @@ class Effect:
 
     name : the effect's key ('stiction', ...); physics : one line; equation : the added term;
     parameters : the reported parameters with their priors; grid : nonlinear parameters and
-    the values profiled over (empty for none); coefficients : names of the linear coefficients;
-    between_tests : the effect changes the tests' coefficients from one test to the next
-    (drift) rather than the force within a test, so the base model's per-test coefficients
-    absorb it in-sample and the residual cannot show what it explains.
+    the values profiled over (empty for none); coefficients : names of the linear coefficients.
     """
 
     name: str = ""
@@ -51,7 +48,6 @@ class Effect:
     grid: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     coefficients: tuple[str, ...] = ()
     positive: tuple[str, ...] = ()
-    between_tests: bool = False
 
     def settings(self) -> list[dict[str, float]]:
         """Every combination of grid values ([{}] when the effect has no grid parameter)."""
@@ -268,7 +264,6 @@ class Drift(Effect):
     equation: str = "-d*s*(Fmu + Ce*|v|^alpha)*sign(v)"
     parameters: tuple[Parameter, ...] = (Parameter("drift", "-", "N(0, 0.5^2)"),)
     coefficients: tuple[str, ...] = ("drift",)
-    between_tests: bool = True
 
     def columns(self, test, setting, alpha, base=None):
         if base is None:

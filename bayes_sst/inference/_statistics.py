@@ -191,10 +191,11 @@ def acceleration_noise_correction(test: PreparedTest, moments: np.ndarray, valid
     PreparedTest.acceleration_noise). Subtracting them is the corrected least-squares moment
     estimator; the residual's noise, (m_payload + Me)^2 N_l, is added back to the (y, y) cell
     at Me = mass_kg (a plug-in value: lagged_moments' pooled least squares), so that the
-    fitted noise sd stays that of the real residual. The whole correction is shrunk (factor lambda <= 1) where it would leave less
-    than NOISE_KEEP of the noise's energy unexplained in a, or less than RESIDUAL_KEEP of the
-    residual energy, at any of a few AR coefficients and damping exponents: an estimate of the
-    noise off by its own sampling error must not make a moment matrix indefinite.
+    fitted noise sd stays that of the real residual. The whole correction is scaled down (by a
+    factor <= 1) where it would leave less than NOISE_KEEP of the noise's energy unexplained in
+    a, or less than RESIDUAL_KEEP of the residual energy, at any of a few AR coefficients and
+    damping exponents: an estimate of the noise off by its own sampling error must not make a
+    moment matrix indefinite.
     """
     draws = test.acceleration_noise(NOISE_DRAWS, seed=zlib.crc32(test.id.encode()))
     lag_sums = pair_moments(draws[:, None, :], draws[:, None, :], valid)[:, :, 0, 0].mean(axis=0)  # (3,)
@@ -218,12 +219,12 @@ def acceleration_noise_correction(test: PreparedTest, moments: np.ndarray, valid
     residual = _schur_first(observed)
     if np.any(noise_energy <= 0):
         return np.zeros_like(correction)
-    shrink = float(np.clip(np.min((unexplained - NOISE_KEEP * noise_energy) / noise_energy), 0.0, 1.0))
-    while shrink > 1e-3:
-        corrected = whitened(moments[nodes] - shrink * correction[None])
+    factor = float(np.clip(np.min((unexplained - NOISE_KEEP * noise_energy) / noise_energy), 0.0, 1.0))
+    while factor > 1e-3:
+        corrected = whitened(moments[nodes] - factor * correction[None])
         if np.all(_schur_first(corrected) >= RESIDUAL_KEEP * residual):
-            return shrink * correction
-        shrink *= 0.5
+            return factor * correction
+        factor *= 0.5
     return np.zeros_like(correction)
 
 
