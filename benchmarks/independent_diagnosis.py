@@ -1,6 +1,7 @@
 """`bayes-sst diagnose` on series of the independent generator (benchmarks/independent_generator.py)
 with one withheld effect each, or none: is the effect selected (and first), how much of the
-excess does it remove, how close are its parameters; clean series must give "none".
+excess does it remove, how close are its parameters; clean series must give "none". Stiction
+(Fs/Fk = 1.4) is among the cases although the diagnosis does not find it yet.
 
     PYTHONPATH=. .venv/bin/python benchmarks/independent_diagnosis.py --seeds 0 1 --dir /tmp/independent_effects \
         [--out benchmarks/results/independent_diagnosis.json]
@@ -31,6 +32,7 @@ CASES = [
     ("hinge-2e5", "position_friction", {"hinge_friction": 2e5}, {"position_friction": 2e5}),
     ("cubic-1e6", "nonlinear_stiffness", {"cubic_stiffness": 1e6}, {"cubic_stiffness": 1e6}),
     ("drift-20%", "drift", {"drift": 0.2}, {"drift": 0.2}),
+    ("stiction-1.4", "stiction", {"static_ratio": 1.4}, {"static_ratio": 1.4}),
 ]
 
 

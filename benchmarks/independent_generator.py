@@ -19,7 +19,8 @@ from its physics here, not from bayes_sst.twin:
       shear m_s*(a + x'') = -m_s*(2 zeta w x' + w^2 x) loads it, x'' + 2 zeta w x' + w^2 x = -a;
   cubic_stiffness K3 (N/m): strut force Ke*u + K3*(u/h)^2*u, h = 1.2 m;
   hinge_friction Fp (N): kinetic (and static) friction level Fk + Fp*(u/h)^2;
-  drift: Fmu and Ce of test j multiplied by 1 - drift*j/(n-1).
+  drift: Fmu and Ce of test j multiplied by 1 - drift*j/(n-1);
+  static_ratio: Fs/Fk in place of the drawn 1.0-1.1 (stiction).
 
     python benchmarks/independent_generator.py OUT_DIR SEED [SEED ...]
 """
@@ -134,6 +135,7 @@ def make_series(seed, out, n_tests=20, effects=None):
     pop["alpha"] = rng.uniform(0.4, 0.8)
     fs = int(rng.choice([200, 500]))
     fs_ratio = rng.uniform(1.0, 1.1)
+    fs_ratio = (effects or {}).get("static_ratio", fs_ratio)
     ns = float(os.environ.get("GEN_NOISE_SCALE", "1"))
     noise = dict(F_ar_sd=ns * rng.uniform(300, 800), F_tc=rng.uniform(0.010, 0.020), F_white=ns * 100.0,
                  u_white=ns * 20e-6, a_white=ns * 0.05)
