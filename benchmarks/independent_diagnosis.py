@@ -33,6 +33,10 @@ CASES = [
     ("cubic-1e6", "nonlinear_stiffness", {"cubic_stiffness": 1e6}, {"cubic_stiffness": 1e6}),
     ("drift-20%", "drift", {"drift": 0.2}, {"drift": 0.2}),
     ("stiction-1.4", "stiction", {"static_ratio": 1.4}, {"static_ratio": 1.4}),
+    # recorded at 1000 Hz: the specimen shows in the triangle tests' harmonics
+    ("specimen-2.5t-11Hz-1kHz", "specimen", {"specimen_mass": 2500.0, "specimen_frequency": 11.0},
+     {"specimen_mass": 2500.0, "specimen_frequency": 11.0}),
+    ("clean-1kHz", None, {}, {}),
 ]
 
 
@@ -56,7 +60,7 @@ def main():
                 continue
             folder = os.path.join(args.dir, f"{label}-s{seed:02d}")
             if not os.path.exists(os.path.join(folder, "truth.json")):
-                make_series(seed, folder, effects=effects)
+                make_series(seed, folder, effects=effects, sample_rate_hz=1000 if label.endswith("1kHz") else None)
             started = time.perf_counter()
             result = diagnose(load_series(folder)).to_json()
             seconds = time.perf_counter() - started

@@ -129,11 +129,12 @@ def ar1(rng, n, fs, tc, sd):
     return x
 
 
-def make_series(seed, out, n_tests=20, effects=None):
+def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None):
     rng = np.random.default_rng(1000 + seed)
     pop = {k: REF[k] * rng.uniform(0.8, 1.2) for k in ("Me", "Ke", "Ce", "Fmu")}
     pop["alpha"] = rng.uniform(0.4, 0.8)
     fs = int(rng.choice([200, 500]))
+    fs = int(sample_rate_hz or fs)  # the draw stays, so the rest of the series does not change
     fs_ratio = rng.uniform(1.0, 1.1)
     fs_ratio = (effects or {}).get("static_ratio", fs_ratio)
     ns = float(os.environ.get("GEN_NOISE_SCALE", "1"))

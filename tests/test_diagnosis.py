@@ -67,6 +67,36 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
         assert _selectable(s, entry) is selected, amplitude_z
 
 
+def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected():
+    """A specimen excited by one triangle test's harmonics (an independent generator's 1000 Hz
+    series: +62.5 nats there, -9.8 on a fast sine, about zero elsewhere; 51 +- 64 in all) passes
+    none of the score rules, but it removes 96 % of an excess of 676 N over a 275 N floor with
+    its mass 32 sds from zero: selected. The same scores without a clear excess (residual at the
+    floor), or with a weakly resolved amplitude, are not."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._diagnose import _entry, _selectable, _with_shrink
+    from bayes_sst.effects import FORCE_EFFECTS
+
+    diff = np.array([0.3, 0.0, 0.4, 0.3, -0.0, 0.6, 0.6, -0.3, -0.3, -0.1,
+                     -9.8, 0.0, -0.3, 1.3, -0.8, -0.4, 0.6, 62.5, -2.3, -1.0])
+    specimen = next(e for e in FORCE_EFFECTS if e.name == "specimen")
+
+    def selected(amplitude_z, before, after, floor):
+        s = SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=64.0, params={},
+                            fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=diff, amplitude_z=amplitude_z)
+        entry = _with_shrink(_entry(s), before, after, floor)
+        return _selectable(s, entry), entry
+
+    chosen, entry = selected(31.9, 675.5, 300.0, 274.8)
+    assert chosen and entry["explains_most"] and entry["shrink"] > 0.9
+    assert entry["sign_p"] > 0.002 and entry["z_loss"] < 5.0  # the other rules alone would miss it
+    assert not selected(31.9, 280.0, 270.0, 274.8)[0]  # no clear excess: 280^2 is 4 % above 274.8^2
+    assert not selected(31.9, 374.7, 340.0, 346.8)[0]  # nor 17 % (an 8 % higher RMS)
+    assert not selected(4.0, 675.5, 300.0, 274.8)[0]  # amplitude under 5 sds
+    assert not selected(31.9, 675.5, 600.0, 274.8)[0]  # removes a third of the excess only
+
+
 def test_amplitude_z_of_a_scored_effect_is_its_coefficient_over_its_sd(clean_diagnosis):
     """EffectScore.amplitude_z from the extended fit's own coefficient and sd (drift, one
     linear coefficient); an effect without one (the delay) passes the gate and reports None."""
