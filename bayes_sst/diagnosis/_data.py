@@ -74,9 +74,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             # left a misfit of about 1.3 kN in its tests that hid the effects
             record = without_steady_offsets(record, p.window)
         fs, cutoff = p.sample_rate_hz, p.cutoff_hz
-        margin = int(np.ceil(4.0 * fs / cutoff))
-        lo = max(0, p.window.start - margin)
-        hi = min(len(record.t), p.window.stop + margin)
+        lo, hi = p.filter_span
         measured_a = record.get("a")
         if measured_a is None:
             # the displacement smoothed as the fit's velocity is (2.5 ms) and differentiated

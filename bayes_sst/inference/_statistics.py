@@ -256,7 +256,7 @@ def lagged_moments(
     with ThreadPoolExecutor(max_workers=max(1, min(len(os.sched_getaffinity(0)), len(tests)))) as pool:
         per_test = list(pool.map(one_test, tests))
         all_moments, all_slopes, all_cross, all_gram, valids = (list(column) for column in zip(*per_test))
-        mass = pooled_mass(np.stack(all_moments), alpha_grid, coefficient_scale)
+        mass = pooled_mass(all_moments, alpha_grid, coefficient_scale)
 
         def corrected(j):
             test = tests[j]
@@ -282,14 +282,14 @@ def lagged_moments(
     )
 
 
-def pooled_mass(moments: np.ndarray, alpha_grid, coefficient_scale) -> float:
+def pooled_mass(moments, alpha_grid, coefficient_scale) -> float:
     """Me (kg) by least squares on all tests' lag-0 moments together at alpha = 0.5, one
     coefficient set for the whole series: a rough value, good to a few %, for the
     accelerometer-noise correction's residual (across tests of different frequencies the
     mass is well apart from the stiffness, unlike within one). The scale of Me when the
     tests cannot give one."""
     node = int(np.argmin(np.abs(np.asarray(alpha_grid) - 0.5)))
-    total = moments[:, node, 0].sum(axis=0)
+    total = sum(m[node, 0] for m in moments)  # moments: per test (G, 3, 5, 5)
     theta = np.linalg.lstsq(total[1:, 1:], total[1:, 0], rcond=1e-12)[0]
     mass = float(theta[0] * coefficient_scale[0])
     return mass if np.isfinite(mass) and mass > 0.0 else float(coefficient_scale[0])

@@ -18,8 +18,9 @@ def white_noise_sd(x, where=None) -> float:
     Why second differences: a motion sampled well above its frequency is nearly a straight line
     over three samples, so d is the noise; a 3 Hz sine at 200 Hz still leaves 1 % of its
     amplitude in d, so callers pass the record less its low-pass (prepare_test: at the analysis
-    cut-off), which leaves the noise's second differences all but whole. Why the median: the friction step of an accelerometer at each velocity reversal puts
-    a few large d per cycle, which an ordinary sd would count as noise. Noise that is coloured
+    cut-off), which leaves the noise's second differences all but whole. Why the median: the
+    friction step of an accelerometer at each velocity reversal puts a few large d per cycle,
+    which an ordinary sd would count as noise. Noise that is coloured
     below the sample rate (an anti-alias filter, a slow drift) shows less in d than it holds, so
     this reads low for it, never high.
 

@@ -145,6 +145,13 @@ class PreparedTest:
     def n_kept(self) -> int:
         return int(self.keep.sum())
 
+    @property
+    def filter_span(self) -> tuple[int, int]:
+        """[lo, hi): the steady window plus a margin of four cut-off periods each side, the
+        stretch a regressor is filtered over (the filter has settled well within the margin)."""
+        margin = int(np.ceil(4.0 * self.sample_rate_hz / self.cutoff_hz))
+        return max(0, self.window.start - margin), min(len(self.velocity_full), self.window.stop + margin)
+
     def regressor(self, of_velocity: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """filter(g(v))[index]: a velocity regressor treated exactly as the force was.
 
@@ -152,9 +159,7 @@ class PreparedTest:
         are allowed in its output, the last axis being time). Only the steady window plus a
         margin of four cut-off periods is filtered; the filter has settled well within it.
         """
-        margin = int(np.ceil(4.0 * self.sample_rate_hz / self.cutoff_hz))
-        lo = max(0, self.window.start - margin)
-        hi = min(len(self.velocity_full), self.window.stop + margin)
+        lo, hi = self.filter_span
         values = of_velocity(self.velocity_full[lo:hi])
         if self.weight_full is not None:
             values = values * self.weight_full[lo:hi]
@@ -169,9 +174,7 @@ class PreparedTest:
         """
         if self.acceleration_noise_sd <= 0.0:
             return np.zeros((n_draws, len(self.index)))
-        margin = int(np.ceil(4.0 * self.sample_rate_hz / self.cutoff_hz))
-        lo = max(0, self.window.start - margin)
-        hi = min(len(self.velocity_full), self.window.stop + margin)
+        lo, hi = self.filter_span
         noise = np.random.default_rng(seed).normal(0.0, self.acceleration_noise_sd, (n_draws, hi - lo))
         if self.acceleration_averaged:
             local = self.window._replace(start=self.window.start - lo, stop=self.window.stop - lo)
