@@ -38,7 +38,9 @@ def _cmd_fit(args) -> int:
     started = time.perf_counter()
     _progress(f"reading {args.series} ...")
     series = load_series(args.series)
-    options = SignalOptions(cutoff_multiple=args.cutoff_multiple, reversal_band=args.reversal_band)
+    options = SignalOptions(cutoff_multiple=args.cutoff_multiple)
+    if args.reversal_band is not None:  # the user's band holds for every test, accelerometer or not
+        options = replace(options, reversal_band=args.reversal_band, reversal_band_without_accelerometer=None)
     priors = make_priors(args.prior, series.table)
     if args.shared:
         priors = replace(priors, shared=tuple(args.shared))
@@ -116,8 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "--shared Me when the moving mass cannot change between tests")
     p.add_argument("--cutoff-multiple", type=float, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
-    p.add_argument("--reversal-band", type=float, default=0.2,
-                   help="leave out samples slower than this share of the peak speed (default 0.2)")
+    p.add_argument("--reversal-band", type=float, default=None,
+                   help="leave out samples slower than this share of the peak speed (default 0.1, "
+                        "0.2 for tests without an accelerometer)")
     p.add_argument("--force", action="store_true", help="replace an existing run folder")
     p.set_defaults(handler=_cmd_fit)
 

@@ -29,13 +29,20 @@ def main():
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--dir", default="/tmp/bayes_sst_independent")
     parser.add_argument("--out", default=None)
+    parser.add_argument("--signal", action="append", default=[], metavar="NAME=VALUE",
+                        help="override a SignalOptions field, e.g. reversal_band=0.1")
     args = parser.parse_args()
+    overrides = {}
+    for item in args.signal:
+        name, _, value = item.partition("=")
+        overrides[name] = float(value)
     sys.path.insert(0, str(HERE))
     from independent_generator import make_series
 
     from bayes_sst.inference import fit
     from bayes_sst.inference._summary import summarize
     from bayes_sst.io import load_series
+    from bayes_sst.signals import SignalOptions
 
     rows = []
     for seed in range(args.first_seed, args.first_seed + args.series):
@@ -44,7 +51,7 @@ def main():
             make_series(seed, folder)
         truth = json.load(open(os.path.join(folder, "truth.json")))["population"]
         started = time.perf_counter()
-        result = fit(load_series(folder), seed=seed)
+        result = fit(load_series(folder), seed=seed, signals=SignalOptions(**overrides))
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"],
                "divergences": summary["divergences"], "max_r_hat": summary["max_r_hat"],
@@ -66,7 +73,7 @@ def main():
                          "z_mean": float(z.mean()), "z_sd": float(z.std(ddof=1))}
         print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f} sd {z.std(ddof=1):.2f}")
     if args.out:
-        Path(args.out).write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
+        Path(args.out).write_text(json.dumps({"signals": overrides, "summary": summary, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":

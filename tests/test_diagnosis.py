@@ -168,6 +168,14 @@ def test_without_an_accelerometer_a_clean_series_stays_clean():
     assert d.rms_before < 1.1 * d.noise_floor
 
 
+def test_one_periodic_test_is_refused_with_the_reason():
+    """The scores leave one test out at a time: with a single sine there is nothing to score
+    against (its score_se was infinite and the JSON could not be written)."""
+    series = simulate("sst-paper", seed=5, plan=default_plan("sst-paper")[:1])
+    with pytest.raises(ValueError, match="1 sine or triangle test.*at least 2"):
+        diagnose(series)
+
+
 @pytest.fixture(scope="module")
 def clean_diagnosis():
     series = simulate("sst-paper", seed=11, spread=0.02, plan=SHORT_PLAN)

@@ -150,6 +150,13 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).accelerometer_noise
     older = {k: v for k, v in current.items() if k != "accelerometer_noise"}
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).accelerometer_noise is False
+    # and runs from before the separate band for tests without an accelerometer used one band
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).band_for(False).reversal_band == 0.2
+    older = {k: v for k, v in current.items() if k != "reversal_band_without_accelerometer"}
+    older["reversal_band"] = 0.2
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).band_for(False).reversal_band == 0.2
+    older["reversal_band"] = 0.15
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).band_for(False).reversal_band == 0.15
 
 
 def _white_force_noise_series():
@@ -248,3 +255,26 @@ def test_a_second_series_of_the_same_size_reuses_the_compiled_sampler(tmp_path):
         subprocess.run([sys.executable, "-c", script, str(seed)], check=True, env=env, capture_output=True)
     samplers = [p.name for p in (tmp_path / "cache").iterdir() if p.name.startswith("jit__fun")]
     assert len(samplers) == 1, samplers
+
+
+def test_a_run_whose_series_folder_moved_says_how_to_point_at_it(tmp_path):
+    from types import SimpleNamespace
+
+    from bayes_sst.inference._predictive import run_prepared
+
+    gone = SimpleNamespace(attrs={"series_path": str(tmp_path / "moved-away")})
+    with pytest.raises(ValueError, match="is not there any more.*--series SERIES"):
+        run_prepared(gone)
+    with pytest.raises(ValueError, match="does not record its series folder.*--series"):
+        run_prepared(SimpleNamespace(attrs={}))
+
+
+def test_a_coefficient_whose_interval_reaches_zero_is_named():
+    from bayes_sst.inference._summary import unphysical_coefficients
+
+    parameters = {name: {"q05": 0.9 * value, "q95": 1.1 * value}
+                  for name, value in {"Me": 13_200.0, "Ke": 7.2e5, "Ce": 29_600.0, "Fmu": 12_500.0}.items()}
+    assert unphysical_coefficients(parameters) == []
+    parameters["Me"]["q05"] = -5_900.0
+    parameters["Fmu"]["q05"] = 0.0
+    assert unphysical_coefficients(parameters) == ["Me", "Fmu"]

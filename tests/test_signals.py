@@ -439,6 +439,26 @@ def test_keep_excludes_exactly_the_reversal_band(clean, band):
     assert share == pytest.approx(2 / np.pi * np.arcsin(band), abs=0.05)
 
 
+def test_a_test_without_an_accelerometer_gets_the_wider_band(clean):
+    """Defaults: 10 % of the peak speed with a measured a, 20 % without one (the derived a
+    carries the rest's corner); None applies reversal_band to both."""
+    record, _ = clean[0]
+    without_a = TestRecord(record.spec, {k: v for k, v in record.columns.items() if k not in ("a", "v")})
+
+    def left_out(rec, options=SignalOptions()):
+        # many kept samples per cycle, so that the left-out share is not quantised
+        prep = prepare_test(rec, replace(options, samples_per_cutoff=20.0))
+        return 1.0 - prep.n_kept / len(prep.index)
+
+    assert "a" in record.columns
+    assert left_out(record) == pytest.approx(2 / np.pi * np.arcsin(0.1), abs=0.02)
+    assert left_out(without_a) == pytest.approx(2 / np.pi * np.arcsin(0.2), abs=0.02)
+    same = SignalOptions(reversal_band=0.1, reversal_band_without_accelerometer=None)
+    assert left_out(without_a, same) == pytest.approx(2 / np.pi * np.arcsin(0.1), abs=0.02)
+    assert SignalOptions().band_for(True).reversal_band == 0.1
+    assert SignalOptions().band_for(False).reversal_band == 0.2
+
+
 def test_filtered_velocity_has_two_reversals_per_cycle(noisy):
     for record, _ in noisy:
         prep = prepare_test(record)
@@ -594,7 +614,9 @@ def test_without_an_accelerometer_the_weighted_acceleration_matches_the_measured
     assert sorted(r.spec.kind for r in series.periodic_tests) == ["sine", "triangle"]
     for record in series.periodic_tests:
         without = TestRecord(record.spec, {k: v for k, v in record.columns.items() if k not in ("a", "v")})
-        with_a, without_a = prepare_test(record), prepare_test(without)
+        # one band for both (the defaults give a test without `a` a wider one)
+        same = SignalOptions(reversal_band=0.2, reversal_band_without_accelerometer=None)
+        with_a, without_a = prepare_test(record, same), prepare_test(without, same)
         keep = with_a.keep
         relative = np.sqrt(np.mean((without_a.a - with_a.a)[keep] ** 2) / np.mean(with_a.a[keep] ** 2))
         assert relative < limits[record.spec.kind], (record.spec.kind, relative)
@@ -658,3 +680,24 @@ def test_payload_friction_is_scaled_to_the_empty_tables_coefficient():
     # the same tests without the table's bearing loads: the extra friction lands in Fmu
     unscaled = pooled([replace(p, friction_load=1.0) for p in prepared])
     assert unscaled["Fmu"] / TRUE["Fmu"] - 1 > 0.02
+
+
+def test_a_dead_or_reversed_accelerometer_is_ignored_with_a_note(clean):
+    """A recorded a that disagrees with the displacement's second derivative (all zeros, the
+    wrong sign, ten times too large) is replaced by the derived acceleration and the reason is
+    kept in PreparedTest.notes; a working one (the synthetic truth) passes untouched."""
+    from bayes_sst.signals._checks import accelerometer_disagreement
+
+    record, truth = clean[1]
+    good = prepare_test(record)
+    assert good.acceleration_measured and good.notes == ()
+    derived = prepare_test(TestRecord(record.spec, {k: v for k, v in record.columns.items() if k != "a"}))
+    for bad_a in (np.zeros_like(truth["a"]), -truth["a"], 10.0 * truth["a"]):
+        prep = prepare_test(TestRecord(record.spec, dict(record.columns, a=bad_a)), source="S01.csv")
+        assert not prep.acceleration_measured
+        assert len(prep.notes) == 1 and "S01.csv" in prep.notes[0] and "column 'a'" in prep.notes[0]
+        np.testing.assert_allclose(prep.a, derived.a)
+    fs = 1.0 / (record.t[1] - record.t[0])
+    u_f = zero_phase_lowpass(record.u, good.cutoff_hz, fs)
+    assert accelerometer_disagreement(truth["a"], u_f, good.cutoff_hz, fs, good.window) is None
+    assert "RMS ratio 0," in accelerometer_disagreement(np.zeros_like(truth["a"]), u_f, good.cutoff_hz, fs, good.window)

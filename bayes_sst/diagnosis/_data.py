@@ -28,8 +28,8 @@ from bayes_sst.signals import SignalOptions, prepare_series, time_derivative, wi
 # re-run with the fit's newer treatment (the default view has no band to weight anyway);
 # for the same reason both read the accelerometer as recorded, not its cycle-synchronous
 # average (signals.periodic_component).
-DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0, velocity_smoothing_s=0.01,
-                                  periodic_acceleration=False)
+DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0, reversal_band_without_accelerometer=None,
+                                  velocity_smoothing_s=0.01, periodic_acceleration=False)
 # The stroke view, for effects that grow with |u| (nonlinear_stiffness, position_friction,
 # strut_inertia): a wider band and no samples slower than 35 % of the peak speed. Under a sine
 # |u| is largest exactly where the table reverses and rests; with the 4f low-pass the rest
@@ -37,8 +37,8 @@ DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0, veloci
 # projects onto u^3 and u^2*sign(v) (clean twin: K'e -6e5 N/m, Fp up to 1e6 N with free
 # per-test coefficients). At 8f the smear stays inside the left-out band. (12f was tried: the
 # fitted test-to-test spread went to 18 %; 8f keeps it at the true 2 %.)
-STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_window=False,
-                               periodic_acceleration=False)
+STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_band_without_accelerometer=None,
+                               reversal_window=False, periodic_acceleration=False)
 DEFAULT_STRUT_H = 1.0
 
 
@@ -75,7 +75,8 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             record = without_steady_offsets(record, p.window)
         fs, cutoff = p.sample_rate_hz, p.cutoff_hz
         lo, hi = p.filter_span
-        measured_a = record.get("a")
+        # a recorded acceleration that prepare_test refused (PreparedTest.notes) is not used here either
+        measured_a = record.get("a") if p.acceleration_measured else None
         if measured_a is None:
             # the displacement smoothed as the fit's velocity is (2.5 ms) and differentiated
             # twice at the recorded rate. The second derivative of the 4f-low-passed u (used

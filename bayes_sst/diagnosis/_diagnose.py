@@ -50,6 +50,8 @@ from bayes_sst.io import Series
 from bayes_sst.signals import SignalOptions
 
 Z_SELECT = 2.5
+# the scores are leave-one-test-out sums: one test leaves nothing to score against
+MIN_PERIODIC_TESTS = 2
 MIN_SCORE = 15.0
 SIGN_P = 0.002
 IMPROVED_NATS = 1.0
@@ -103,21 +105,29 @@ class Diagnosis:
     timings: dict[str, float]
     settings: dict[str, Any]
     stroke: dict[str, Any] | None = None
+    # "N" for the force residual; "response" when the figures are the oil column's
+    # command-to-motion misfit (dimensionless |H| units), the only finding or the only data
+    rms_unit: str = "N"
     # arrays kept for the figures (not in the json)
     figures: dict[str, Any] = field(default_factory=dict, repr=False)
 
+    def _amount(self, value: float) -> str:
+        return f"{value:.0f} N" if self.rms_unit == "N" else f"{value:.3g}"
+
     @property
     def verdict(self) -> str:
+        what = "residual RMS" if self.rms_unit == "N" else "command-to-motion response misfit RMS"
         if not self.selected:
             return ("verdict: none - no candidate effect improves the fit beyond the noise "
-                    f"(residual RMS {self.rms_before:.0f} N, noise floor {self.noise_floor:.0f} N)")
+                    f"({what} {self._amount(self.rms_before)}, noise floor {self._amount(self.noise_floor)})")
         parts = []
         for name in self.selected:
             entry = next(r for r in self.ranking if r["name"] == name)
             params = ", ".join(f"{k} = {v['mean']:.4g}" for k, v in entry["params"].items())
             parts.append(f"{name} ({params})")
-        return (f"verdict: {' + '.join(parts)}; residual RMS {self.rms_before:.0f} -> {self.rms_after:.0f} N "
-                f"(noise floor {self.noise_floor:.0f} N), {100 * self.shrink:.0f} % of the excess removed")
+        before = f"{self.rms_before:.0f}" if self.rms_unit == "N" else f"{self.rms_before:.3g}"
+        return (f"verdict: {' + '.join(parts)}; {what} {before} -> {self._amount(self.rms_after)} "
+                f"(noise floor {self._amount(self.noise_floor)}), {100 * self.shrink:.0f} % of the excess removed")
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -126,6 +136,7 @@ class Diagnosis:
             "selected": list(self.selected),
             "ranking": self.ranking,
             "where": self.where,
+            "rms_unit": self.rms_unit,
             "noise_floor": self.noise_floor,
             "rms_before": self.rms_before,
             "rms_after": self.rms_after,
@@ -435,6 +446,7 @@ def _broadband_only(series: Series, started: float) -> Diagnosis:
         rms_after=oil["rms_after"] if chosen else oil["rms_before"], shrink=oil["shrink"] if chosen else 0.0,
         base_shift={}, base={}, final={}, region={}, steps=[], oil=oil, stroke=None,
         timings={"total": time.perf_counter() - started}, settings={"z_select": Z_SELECT, "min_score": MIN_SCORE},
+        rms_unit="response",
     )
 
 
@@ -450,8 +462,14 @@ def diagnose(
     say = progress or (lambda message: None)
     started = time.perf_counter()
     timings: dict[str, float] = {}
-    if not series.periodic_tests:
-        return _broadband_only(series, started)
+    if len(series.periodic_tests) < MIN_PERIODIC_TESTS:
+        if any(t.spec.kind == "broadband" for t in series.tests):
+            say(f"{len(series.periodic_tests)} periodic test(s): the force effects need at least "
+                f"{MIN_PERIODIC_TESTS}; only the broadband tests' oil-column check runs")
+            return _broadband_only(series, started)
+        raise ValueError(
+            f"series {series.name!r} has {len(series.periodic_tests)} sine or triangle test(s); diagnose scores "
+            f"each effect test by test, leaving one test out at a time, and needs at least {MIN_PERIODIC_TESTS}")
     tests = effect_data(series, signals)
     max_stroke = max(float(np.max(np.abs(t.u))) for t in tests)
     scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": max_stroke})
@@ -484,7 +502,9 @@ def diagnose(
                       "rms_after": _rms(final.residuals, mask)}
     base_values = base.base()
     final_values = final.base()
-    base_shift = {k: float((final_values[k] - base_values[k]) / base_values[k]) for k in base_values}
+    # relative change; a base value of exactly 0 (no information in the data) has none
+    base_shift = {k: (float((final_values[k] - base_values[k]) / base_values[k]) if base_values[k] != 0 else None)
+                  for k in base_values}
     selected_names = [s.effect.name for s in selected]
     shrink = _shrink(rms_before, rms_after, floor) if selected else 0.0
 
@@ -506,6 +526,7 @@ def diagnose(
     t0 = time.perf_counter()
     oil = oil_column_check(series)
     timings["oil_column"] = time.perf_counter() - t0
+    rms_unit = "N"
     if oil is not None:
         ranking.append({k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor")})
         ranking[-1]["test_elpd_diff"] = []
@@ -519,6 +540,7 @@ def diagnose(
                 # the oil column is the only finding: report its own (frequency-response) misfit
                 floor, rms_before, rms_after, shrink = (oil["noise_floor"], oil["rms_before"],
                                                         oil["rms_after"], oil["shrink"])
+                rms_unit = "response"
     timings["total"] = time.perf_counter() - started
     return Diagnosis(
         series_name=series.name,
@@ -541,4 +563,5 @@ def diagnose(
                   "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,
                   "tests": [t.id for t in tests]},
         figures={"tests": tests, "base": base, "final": final, "floors": floors},
+        rms_unit=rms_unit,
     )

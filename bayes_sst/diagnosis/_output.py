@@ -17,9 +17,14 @@ NEGLIGIBLE_EXCESS = 0.05
 
 def format_diagnosis(data: dict) -> str:
     """A short human-readable account: verdict, where, ranking (kN in the text, SI in the json)."""
+    if data.get("rms_unit", "N") == "N":
+        amounts = (f"noise floor {data['noise_floor'] / 1e3:.3f} kN, residual RMS before {data['rms_before'] / 1e3:.3f} kN, "
+                   f"after {data['rms_after'] / 1e3:.3f} kN")
+    else:  # the oil column's command-to-motion misfit, dimensionless
+        amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
+                   f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
-             f"noise floor {data['noise_floor'] / 1e3:.3f} kN, residual RMS before {data['rms_before'] / 1e3:.3f} kN, "
-             f"after {data['rms_after'] / 1e3:.3f} kN, shrink {100 * data['shrink']:.0f} % of the excess",
+             f"{amounts}, shrink {100 * data['shrink']:.0f} % of the excess",
              "", "where the base model misses (share of the excess over the noise floor):"]
     excess = data["rms_before"] ** 2 - data["noise_floor"] ** 2
     if excess < NEGLIGIBLE_EXCESS * data["noise_floor"] ** 2:

@@ -182,6 +182,9 @@ def fit(
         f"(from {sum(t.n_samples for t in series.periodic_tests)} recorded) prepared in {timings['signals']:.1f} s",
     )
 
+    notes = [note for test in prepared for note in test.notes]
+    for note in notes:
+        _say(progress, f"!! {note}")
     table = moment_table(moments, jnp)
 
     def sample(priors: Priors):
@@ -252,6 +255,8 @@ def fit(
         tree = sample(priors)
         tree.attrs["mass_refit"] = json.dumps({"first_fit_mass_spread": mass_spread,
                                                "threshold": IMPLAUSIBLE_MASS_SPREAD})
+    if notes:
+        tree.attrs["signal_notes"] = json.dumps(notes)
     return FitResult(
         tree=tree,
         prepared=prepared,

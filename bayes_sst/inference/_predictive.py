@@ -37,7 +37,8 @@ def run_signal_options(tree) -> SignalOptions:
     synchronous average of a (no "periodic_acceleration"), the removal of the steady window's
     offsets (no "remove_offsets"), the payload's friction load (no "payload_friction") or the
     accelerometer's noise estimate (no "accelerometer_noise") was fitted without it, and is
-    re-prepared without it.
+    re-prepared without it; one from before the separate band for tests without an
+    accelerometer (no "reversal_band_without_accelerometer") used its reversal_band for all.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -48,6 +49,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("remove_offsets", False)
     recorded.setdefault("payload_friction", False)
     recorded.setdefault("accelerometer_noise", False)
+    recorded.setdefault("reversal_band_without_accelerometer", None)
     return SignalOptions(**recorded)
 
 
@@ -56,13 +58,19 @@ def run_prepared(tree, series=None) -> list[PreparedTest]:
 
     `series` may be given (a Series); otherwise it is read from the path the run recorded.
     """
+    from pathlib import Path
+
     from bayes_sst.io import load_series
     from bayes_sst.signals import prepare_series
 
     if series is None:
         path = tree.attrs.get("series_path", "")
         if not path:
-            raise ValueError("the run does not record its series folder; pass the series explicitly")
+            raise ValueError("the run does not record its series folder; pass the series explicitly "
+                             "(bayes-sst report RUN --series SERIES)")
+        if not Path(path).is_dir():
+            raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
+                             "pass its new location (bayes-sst report RUN --series SERIES)")
         series = load_series(path)
     prepared = {t.id: t for t in prepare_series(series, run_signal_options(tree))}
     wanted = [str(t) for t in tree["posterior"]["test"].values]

@@ -75,7 +75,8 @@ def _header(path: Path, line: str) -> list[str]:
         raise SeriesFormatError(path, "row 1", "is empty; expected the header row naming the columns")
     if all(_NUMBER.fullmatch(name) for name in names):
         raise SeriesFormatError(
-            path, "row 1", f"holds numbers ({line.strip()[:40]}), not a header naming the columns"
+            path, "row 1", f"holds numbers ({', '.join(names[:3])}{', ...' if len(names) > 3 else ''}), "
+                           "not a header naming the columns"
         )
     for k, name in enumerate(names):
         if not name:
