@@ -48,6 +48,9 @@ class Effect:
     grid: Mapping[str, tuple[float, ...]] = field(default_factory=dict)
     coefficients: tuple[str, ...] = ()
     positive: tuple[str, ...] = ()
+    # base coefficients whose test-to-test variation the effect describes (drift): such an
+    # effect changes the per-test coefficients, not the within-test residual
+    between_tests: tuple[str, ...] = ()
 
     def settings(self) -> list[dict[str, float]]:
         """Every combination of grid values ([{}] when the effect has no grid parameter)."""
@@ -264,6 +267,7 @@ class Drift(Effect):
     equation: str = "-d*s*(Fmu + Ce*|v|^alpha)*sign(v)"
     parameters: tuple[Parameter, ...] = (Parameter("drift", "-", "N(0, 0.5^2)"),)
     coefficients: tuple[str, ...] = ("drift",)
+    between_tests: tuple[str, ...] = ("Ce", "Fmu")
 
     def columns(self, test, setting, alpha, base=None):
         if base is None:
