@@ -119,8 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cutoff-multiple", type=float, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
     p.add_argument("--reversal-band", type=float, default=None,
-                   help="leave out samples slower than this share of the peak speed (default 0.1, "
-                        "0.2 for tests without an accelerometer)")
+                   help="leave out samples slower than this share of the peak speed (default 0.1, and "
+                        "0.2 for tests without an accelerometer; a value given here applies to every test)")
     p.add_argument("--force", action="store_true", help="replace an existing run folder")
     p.set_defaults(handler=_cmd_fit)
 

@@ -345,10 +345,14 @@ def test_summary_shows_published_classical_posterior_and_prior_movement():
     plain = format_summary(summary)
     assert "published" in plain and "classical" not in plain and "moved" not in plain
     assert "WARNING" not in plain
-    noted = format_summary(dict(summary, warnings=["a note about the data"]))
+    note = "a note about the data"
+    noted = format_summary(dict(summary, warnings=[note], notes=[note]))
     assert "read these before using the numbers" in noted and "did not pass" not in noted
     failed = format_summary(dict(summary, warnings=["R-hat 1.02 exceeds 1.01"], converged=False))
-    assert "the sampler did not pass its checks" in failed
+    assert "the sampler did not pass its checks" in failed and "read these" not in failed
+    both = format_summary(dict(summary, warnings=["R-hat 1.02 exceeds 1.01", note], notes=[note], converged=False))
+    head, _, tail = both.partition("read these before using the numbers")
+    assert "R-hat 1.02" in head and note not in head and note in tail
     classical = {"pooled": {"Me": 13_100.0, "Ke": 715_000.0, "Ce": 30_000.0, "alpha": 0.49, "Fmu": 12_300.0}}
     priors = {"source": "physics", "centres": {"Me": 12_000.0, "Ke": 720_000.0, "Ce": 20_000.0, "Fmu": 12_500.0},
               "alpha": {"mean": 0.75}, "relations": {"Me": "Me = deck_mass_kg"}}

@@ -157,6 +157,10 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).band_for(False).reversal_band == 0.2
     older["reversal_band"] = 0.15
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).band_for(False).reversal_band == 0.15
+    # and runs from before the accelerometer check used every recorded a
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).check_accelerometer
+    older = {k: v for k, v in current.items() if k != "check_accelerometer"}
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).check_accelerometer is False
 
 
 def _white_force_noise_series():

@@ -700,4 +700,17 @@ def test_a_dead_or_reversed_accelerometer_is_ignored_with_a_note(clean):
     fs = 1.0 / (record.t[1] - record.t[0])
     u_f = zero_phase_lowpass(record.u, good.cutoff_hz, fs)
     assert accelerometer_disagreement(truth["a"], u_f, good.cutoff_hz, fs, good.window) is None
-    assert "RMS ratio 0," in accelerometer_disagreement(np.zeros_like(truth["a"]), u_f, good.cutoff_hz, fs, good.window)
+    assert "RMS ratio 0 " in accelerometer_disagreement(np.zeros_like(truth["a"]), u_f, good.cutoff_hz, fs, good.window)
+
+
+def test_a_working_but_noisy_accelerometer_on_a_slow_small_test_is_kept():
+    """0.25 Hz, 2 mm: the acceleration's amplitude is 5 mm/s^2, under the accelerometer's
+    in-band noise (0.2 m/s^2 white at the recorded rate); the check allows for that noise and
+    keeps the channel, while the same channel reversed is still refused."""
+    record, truth = _synthetic_test(0, 0.25, 0.002, seed=4)
+    rng = np.random.default_rng(4)
+    noisy_a = truth["a"] + 0.2 * rng.standard_normal(truth["a"].shape)
+    kept = prepare_test(TestRecord(record.spec, dict(record.columns, a=noisy_a)))
+    assert kept.acceleration_measured and kept.notes == ()
+    refused = prepare_test(TestRecord(record.spec, dict(record.columns, a=-noisy_a)))
+    assert not refused.acceleration_measured and len(refused.notes) == 1

@@ -283,7 +283,7 @@ def decompose_test(
     """
     from scipy.interpolate import CubicSpline
 
-    from bayes_sst.signals import steady_cycles, zero_phase_lowpass
+    from bayes_sst.signals import accelerometer_disagreement, steady_cycles, zero_phase_lowpass
 
     spec = record.spec
     where = source or spec.file
@@ -307,6 +307,11 @@ def decompose_test(
 
     window = steady_cycles(u_f, t, f, tolerance=steady_tolerance)
     n_cycles = 0 if window is None else window.n_cycles
+    if a_f is not None and window is not None and accelerometer_disagreement(
+            measured_a, u_f, top if cutoff is None else cutoff, fs, window):
+        # a dead, reversed or mis-scaled accelerometer: u'' instead, as the fit does (its summary
+        # names the test)
+        a_f = None
     if not -n_cycles <= cycle < n_cycles:
         raise SeriesFormatError(
             where,

@@ -248,9 +248,11 @@ def design(
     repeat = cycled([Candidate(t.kind, t.frequency_hz, t.amplitude_m) for t in prepared], max_tests)
     unique = list(dict.fromkeys(list(accepted) + repeat))
     built = {}
+    # candidates are recorded the way most of the series' tests were: with or without an accelerometer
+    accelerometer = 2 * sum(t.acceleration_measured for t in prepared) >= len(prepared)
     for i, c in enumerate(unique):
         test = candidate_test(c, n_cycles=n_cycles, sample_rate_hz=rate, coefficients=means, options=options,
-                              test_id=f"C{i + 1:03d}")
+                              test_id=f"C{i + 1:03d}", accelerometer=accelerometer)
         built[c] = columns_of(test)
     twins = dict(zip(unique, noise_sources(prepared, [c.kind for c in unique], [c.frequency_hz for c in unique],
                                            [c.amplitude_m for c in unique])))

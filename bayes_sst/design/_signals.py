@@ -62,8 +62,14 @@ def candidate_record(candidate: Candidate, *, n_cycles: int, sample_rate_hz: flo
 
 def candidate_test(candidate: Candidate, *, n_cycles: int, sample_rate_hz: float,
                    coefficients: Mapping[str, float], options: SignalOptions = SignalOptions(),
-                   test_id: str = "C") -> PreparedTest:
-    """The PreparedTest the fit would build from the candidate's record."""
+                   test_id: str = "C", accelerometer: bool = True) -> PreparedTest:
+    """The PreparedTest the fit would build from the candidate's record.
+
+    accelerometer=False leaves `a` out of the record, as on a table recorded without one: the
+    fit then derives a from u and gives the test the wider reversal band
+    (SignalOptions.band_for), and so does the candidate."""
     record = candidate_record(candidate, n_cycles=n_cycles, sample_rate_hz=sample_rate_hz,
                               coefficients=coefficients, test_id=test_id)
+    if not accelerometer:
+        record = TestRecord(record.spec, {k: v for k, v in record.columns.items() if k != "a"})
     return prepare_test(record, options, source=f"candidate {candidate.describe()}")

@@ -101,7 +101,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             sample_rate_hz=fs,
             cutoff_hz=cutoff,
             lo=lo,
-            index=p.index[p.keep] if options.reversal_band > 0 else p.index,
+            index=p.index[p.keep],  # every sample of the window where the band is 0
             u_full=zero_phase_lowpass(record.u, cutoff, fs)[lo:hi],
             v_full=p.velocity_full[lo:hi],
             a_full=zero_phase_lowpass(a_raw, cutoff, fs)[lo:hi],
@@ -109,5 +109,6 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             a_record=a_raw[:hi],
             period_samples=p.window.period_samples,
             friction_load=p.friction_load,
+            notes=p.notes,
         ))
     return out

@@ -112,6 +112,8 @@ class Diagnosis:
     # "between_tests": the share of the per-test coefficients' test-to-test variance explained
     # (_between_test_share), for effects that act between tests only (drift)
     shrink_basis: str = "residual"
+    # what the signal treatment set aside (a recorded acceleration it refused, ...)
+    notes: list[str] = field(default_factory=list)
     # arrays kept for the figures (not in the json)
     figures: dict[str, Any] = field(default_factory=dict, repr=False)
 
@@ -144,6 +146,7 @@ class Diagnosis:
             "where": self.where,
             "rms_unit": self.rms_unit,
             "shrink_basis": self.shrink_basis,
+            "notes": list(self.notes),
             "noise_floor": self.noise_floor,
             "rms_before": self.rms_before,
             "rms_after": self.rms_after,
@@ -292,8 +295,10 @@ def _between_test_share(before: ModelFit, after: ModelFit, names: Sequence[str])
     population by the fitted spread; the spread falls once the trend is modelled, so this share
     reads somewhat high.
     """
+    usable = [n for n in names if before.coefficient(n) != 0 and after.coefficient(n) != 0]
+
     def scatter(fit: ModelFit) -> float:
-        return sum(float(np.var(fit.theta[:, fit.names.index(n)] / fit.coefficient(n), ddof=1)) for n in names)
+        return sum(float(np.var(fit.theta[:, fit.names.index(n)] / fit.coefficient(n), ddof=1)) for n in usable)
 
     total = scatter(before)
     if len(before.theta) < 2 or total <= 0.0:
@@ -462,7 +467,8 @@ def _stroke_view(series: Series, effects: Sequence[Effect], signals: SignalOptio
 
 
 def _broadband_only(series: Series, started: float) -> Diagnosis:
-    """A series without periodic tests: only the oil_column check applies."""
+    """A series with fewer than MIN_PERIODIC_TESTS periodic tests: only the oil_column check
+    of its broadband tests applies."""
     oil = oil_column_check(series)
     if oil is None:
         raise ValueError(f"series {series.name!r} has neither periodic nor broadband tests to diagnose")
@@ -500,6 +506,8 @@ def diagnose(
             f"series {series.name!r} has {len(series.periodic_tests)} sine or triangle test(s); diagnose scores "
             f"each effect test by test, leaving one test out at a time, and needs at least {MIN_PERIODIC_TESTS}")
     tests = effect_data(series, signals)
+    for note in (note for t in tests for note in t.notes):
+        say(f"!! {note}")
     max_stroke = max(float(np.max(np.abs(t.u))) for t in tests)
     scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": max_stroke})
     alpha_start = None
@@ -598,4 +606,5 @@ def diagnose(
         figures={"tests": tests, "base": base, "final": final, "floors": floors},
         rms_unit=rms_unit,
         shrink_basis=shrink_basis,
+        notes=[note for t in tests for note in t.notes],
     )

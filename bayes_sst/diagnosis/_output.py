@@ -24,7 +24,10 @@ def format_diagnosis(data: dict) -> str:
         amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
                    f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
-             f"{amounts}, shrink {100 * data['shrink']:.0f} % of the excess",
+             f"{amounts}, " + (f"shrink {100 * data['shrink']:.0f} % of the excess"
+                               if data.get("shrink_basis", "residual") == "residual" else
+                               f"{100 * data['shrink']:.0f} % of the per-test coefficients' test-to-test scatter "
+                               "explained (the residual is not what a between-test effect changes)"),
              "", "where the base model misses (share of the excess over the noise floor):"]
     excess = data["rms_before"] ** 2 - data["noise_floor"] ** 2
     if excess < NEGLIGIBLE_EXCESS * data["noise_floor"] ** 2:
@@ -34,6 +37,8 @@ def format_diagnosis(data: dict) -> str:
         extra = f", {100 * w['sample_share']:.0f} % of the samples" if w.get("sample_share") is not None else ""
         lines.append(f"  {100 * w['share']:6.0f} %  {w['region']}{extra}  "
                      f"(mean square {100 * w['excess_ratio']:+.0f} % over its floor)")
+    if data.get("notes"):
+        lines += ["", "notes on the data:"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
@@ -42,7 +47,8 @@ def format_diagnosis(data: dict) -> str:
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}")
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
-                  + ", ".join(f"{k} {100 * v:+.1f} %" for k, v in data["base_shift"].items())]
+                  + ", ".join(f"{k} {100 * v:+.1f} %" if v is not None else f"{k} n/a"
+                              for k, v in data["base_shift"].items())]
     return "\n".join(lines)
 
 

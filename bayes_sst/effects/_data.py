@@ -47,6 +47,7 @@ class EffectData:
     a_record: np.ndarray
     period_samples: float
     friction_load: float = 1.0
+    notes: tuple[str, ...] = ()  # what the signal treatment set aside (PreparedTest.notes)
 
     @property
     def a_raw(self) -> np.ndarray:

@@ -38,7 +38,8 @@ def run_signal_options(tree) -> SignalOptions:
     offsets (no "remove_offsets"), the payload's friction load (no "payload_friction") or the
     accelerometer's noise estimate (no "accelerometer_noise") was fitted without it, and is
     re-prepared without it; one from before the separate band for tests without an
-    accelerometer (no "reversal_band_without_accelerometer") used its reversal_band for all.
+    accelerometer (no "reversal_band_without_accelerometer") used its reversal_band for all, and
+    one from before the accelerometer check (no "check_accelerometer") used every recorded a.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -50,6 +51,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("payload_friction", False)
     recorded.setdefault("accelerometer_noise", False)
     recorded.setdefault("reversal_band_without_accelerometer", None)
+    recorded.setdefault("check_accelerometer", False)
     return SignalOptions(**recorded)
 
 

@@ -117,24 +117,25 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     if saturated:
         warnings.append(f"{saturated} transitions hit the maximum tree depth")
     converged = not warnings
+    # notes about the data and the model: listed with the warnings, but not convergence failures
+    notes = json.loads(tree.attrs.get("signal_notes", "") or "[]")
     refit = json.loads(tree.attrs.get("mass_refit", "") or "null")
     if refit:
-        warnings.append(
+        notes.append(
             f"Me is shared by all tests: a first fit with Me varying gave a between-test sd of "
             f"{100 * refit['first_fit_mass_spread']:.0f} % for the moving mass, which a table does not do (per-test "
             "Me and Ke of the sine tests slide along their ridge when the force noise is small against Me times "
             "the accelerometer's); the numbers are from the refit (README, known limitations)"
         )
-    warnings += json.loads(tree.attrs.get("signal_notes", "") or "[]")
     unphysical = unphysical_coefficients(parameters)
     if unphysical:
-        warnings.append(
-            f"the 90 % interval of {', '.join(unphysical)} reaches zero or below: these data do not "
-            "determine it (too few tests, or too narrow a range of frequency and speed); add tests "
-            "(bayes-sst design) before using it")
+        notes.append(
+            f"the 90 % interval of {', '.join(unphysical)} reaches zero or below: unless the table's value "
+            "is truly near zero, these data do not determine it (too few tests, or too narrow a range of "
+            "frequency and speed); add tests (bayes-sst design) before using it")
     me_spread = spread["Me"]["relative_sd_mean"]
     if me_spread > IMPLAUSIBLE_MASS_SPREAD:
-        warnings.append(
+        notes.append(
             f"the moving mass varies by {100 * me_spread:.0f} % between tests, which a table does not do: "
             "within a sine test Me and Ke are told apart only by the harmonics, and the per-test values "
             "have likely slid along that ridge (Me biased low); refit with --shared Me (README, known limitations)"
@@ -153,7 +154,8 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
         "max_r_hat_per_test": worst_nuisance_rhat,
         "min_ess_bulk_per_test": least_nuisance_ess,
         "converged": converged,
-        "warnings": warnings,
+        "warnings": warnings + notes,
+        "notes": notes,
         "n_tests": n_tests,
         "n_samples": n_samples,
         "n_steady_samples": n_steady,
@@ -210,11 +212,15 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
         + (f", {summary['seconds']:.1f} s" if summary.get("seconds") else ""),
         "",
     ]
-    if summary["warnings"]:
-        # the convergence checks failed, or only notes about the data and the model apply
-        lines.append("!! WARNING: the sampler did not pass its checks !!" if not summary.get("converged", False)
-                     else "!! WARNING: read these before using the numbers !!")
-        lines += [f"!!   {w}" for w in summary["warnings"]]
+    notes = summary.get("notes", [])
+    failures = [w for w in summary["warnings"] if w not in notes]
+    if failures or not summary.get("converged", True):
+        lines.append("!! WARNING: the sampler did not pass its checks !!")
+        lines += [f"!!   {w}" for w in failures]
+        lines.append("")
+    if notes:
+        lines.append("!! WARNING: read these before using the numbers !!")
+        lines += [f"!!   {w}" for w in notes]
         lines.append("")
     header = f"{'parameter':<10}{'unit':<12}{'published':>10}"
     if classical is not None:

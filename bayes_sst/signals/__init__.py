@@ -1,5 +1,6 @@
 """Signals: filtering, derivatives, steady-state cycles and the likelihood's sample set."""
 
+from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._prepare import (
@@ -15,6 +16,7 @@ from bayes_sst.signals._prepare import (
 
 __all__ = [
     "MIN_STEADY_CYCLES",
+    "accelerometer_disagreement",
     "CycleWindow",
     "PreparedTest",
     "SignalOptions",

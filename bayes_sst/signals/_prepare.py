@@ -33,7 +33,8 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    2.8 % to 2.2 % (within 3 % of the truth in 79 % of series instead of 54 %) and Ce's coverage
    from 83 % to 92 %; on 50 twin series Fmu within 3 % from 80 % to 84 %, every coverage
    within 86-96 %. 5 % narrowed Fmu further (1.9 %) but moved the twin's Me by +0.36 posterior
-   sd on average, since its table rests for 5-30 ms at a reversal.
+   sd on average, since its table rests for 5-30 ms at a reversal. A test without a recorded
+   acceleration keeps 20 % (SignalOptions.band_for).
 4. Steady state. Only the longest run of whole cycles whose amplitude sits on the plateau
    enters; ramp-in and ramp-out cycles are trimmed. The means of F, u, a (and a measured v)
    over those cycles are subtracted first (without_steady_offsets): sensor zero offsets.
@@ -81,7 +82,7 @@ class SignalOptions:
     cutoff_multiple : low-pass cut-off as a multiple of the test frequency.
     reversal_band : samples with |v| below this share of the peak speed are left out.
     reversal_band_without_accelerometer : the band of a test whose acceleration is derived
-        from u (no `a` column); None uses reversal_band. Wider, because the derived
+        from u (no `a` column, or one set aside by check_accelerometer); None uses reversal_band. Wider, because the derived
         acceleration carries the rest's corner at a reversal (see band_for).
     steady_tolerance : relative amplitude band that defines a steady cycle.
     skip_cycles : steady cycles dropped at the start of the run (settling).
@@ -99,6 +100,8 @@ class SignalOptions:
         window's whole cycles (sensor zero offsets; see without_steady_offsets).
     payload_friction : scale each test's Coulomb regressor by its bearing-load ratio
         (friction_load), so that every test's Fmu is the empty table's.
+    check_accelerometer : set aside a recorded acceleration that disagrees with the
+        displacement's second derivative (signals._checks), with a note.
     accelerometer_noise : estimate the white noise of a measured acceleration
         (acceleration_noise_sd), so that the likelihood's moments can be rid of what that
         noise adds to them (inference.lagged_moments, errors in variables).
@@ -118,6 +121,7 @@ class SignalOptions:
     remove_offsets: bool = True
     payload_friction: bool = True
     accelerometer_noise: bool = True
+    check_accelerometer: bool = True
 
     def band_for(self, measured_acceleration: bool) -> "SignalOptions":
         """These options with the reversal band that applies to a test with or without a
@@ -354,7 +358,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         record = centred
     measured_a = record.get("a")
     notes: tuple[str, ...] = ()
-    if measured_a is not None:
+    if measured_a is not None and options.check_accelerometer:
         problem = accelerometer_disagreement(measured_a, u_f, cutoff, fs, window)
         if problem:
             notes = (f"{where}: test '{spec.id}': {problem}; it is ignored and a is derived from u",)
