@@ -44,10 +44,9 @@ def main():
     parser.add_argument("--shared", nargs="*", default=None, metavar="COEFFICIENT",
                         help="coefficients without between-test variation (default: the package default)")
     args = parser.parse_args()
-    overrides = {}
-    for item in args.signal:
-        name, _, value = item.partition("=")
-        overrides[name] = float(value)
+    from _options import signal_overrides
+
+    overrides = signal_overrides(args.signal)
     if args.cutoff_multiple is not None:
         overrides["cutoff_multiple"] = args.cutoff_multiple
     rows = []

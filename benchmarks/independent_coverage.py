@@ -32,10 +32,9 @@ def main():
     parser.add_argument("--signal", action="append", default=[], metavar="NAME=VALUE",
                         help="override a SignalOptions field, e.g. reversal_band=0.1")
     args = parser.parse_args()
-    overrides = {}
-    for item in args.signal:
-        name, _, value = item.partition("=")
-        overrides[name] = float(value)
+    from _options import signal_overrides
+
+    overrides = signal_overrides(args.signal)
     sys.path.insert(0, str(HERE))
     from independent_generator import make_series
 

@@ -271,6 +271,10 @@ def test_a_run_whose_series_folder_moved_says_how_to_point_at_it(tmp_path):
         run_prepared(gone)
     with pytest.raises(ValueError, match="does not record its series folder.*--series"):
         run_prepared(SimpleNamespace(attrs={}))
+    from bayes_sst.inference._predictive import run_series
+
+    with pytest.raises(ValueError, match=r"bayes-sst design RUN --series SERIES"):
+        run_series(gone, "design")
 
 
 def test_a_coefficient_whose_interval_reaches_zero_is_named():

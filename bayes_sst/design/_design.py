@@ -196,7 +196,7 @@ def design(
     series: the run's Series (default: read from the folder the run records).
     """
     from bayes_sst.inference import run_prepared, run_signal_options
-    from bayes_sst.io import load_series
+    from bayes_sst.inference._predictive import run_series
 
     say = progress or (lambda message: None)
     started = time.perf_counter()
@@ -205,10 +205,7 @@ def design(
     if max_tests < 1:
         raise ValueError(f"--max-tests must be at least 1, got {max_tests}")
     if series is None:
-        path = tree.attrs.get("series_path", "")
-        if not path:
-            raise ValueError("the run does not record its series folder; pass the series explicitly")
-        series = load_series(path)
+        series = run_series(tree, "design")
     prepared = run_prepared(tree, series)
     options = run_signal_options(tree)
     full = design_posterior(tree, prepared)

@@ -55,25 +55,33 @@ def run_signal_options(tree) -> SignalOptions:
     return SignalOptions(**recorded)
 
 
-def run_prepared(tree, series=None) -> list[PreparedTest]:
-    """Re-prepare the run's series exactly as the fit did, in the run's test order.
-
-    `series` may be given (a Series); otherwise it is read from the path the run recorded.
-    """
+def run_series(tree, command: str = "report"):
+    """The series a run was fitted on, read from the folder the run records; the errors say how
+    to point `bayes-sst COMMAND RUN --series SERIES` at it when that folder is gone."""
     from pathlib import Path
 
     from bayes_sst.io import load_series
+
+    path = tree.attrs.get("series_path", "")
+    if not path:
+        raise ValueError("the run does not record its series folder; pass the series explicitly "
+                         f"(bayes-sst {command} RUN --series SERIES)")
+    if not Path(path).is_dir():
+        raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
+                         f"pass its new location (bayes-sst {command} RUN --series SERIES)")
+    return load_series(path)
+
+
+def run_prepared(tree, series=None) -> list[PreparedTest]:
+    """Re-prepare the run's series exactly as the fit did, in the run's test order.
+
+    `series` may be given (a Series); otherwise it is read from the path the run recorded
+    (run_series).
+    """
     from bayes_sst.signals import prepare_series
 
     if series is None:
-        path = tree.attrs.get("series_path", "")
-        if not path:
-            raise ValueError("the run does not record its series folder; pass the series explicitly "
-                             "(bayes-sst report RUN --series SERIES)")
-        if not Path(path).is_dir():
-            raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
-                             "pass its new location (bayes-sst report RUN --series SERIES)")
-        series = load_series(path)
+        series = run_series(tree)
     prepared = {t.id: t for t in prepare_series(series, run_signal_options(tree))}
     wanted = [str(t) for t in tree["posterior"]["test"].values]
     missing = [t for t in wanted if t not in prepared]
