@@ -308,7 +308,7 @@ def decompose_test(
     window = steady_cycles(u_f, t, f, tolerance=steady_tolerance)
     n_cycles = 0 if window is None else window.n_cycles
     if a_f is not None and window is not None and accelerometer_disagreement(
-            measured_a, u_f, top if cutoff is None else cutoff, fs, window):
+            measured_a, u_f, top if cutoff is None else cutoff, fs, window, a_low=None if cutoff is None else a_f):
         # a dead, reversed or mis-scaled accelerometer: u'' instead, as the fit does (its summary
         # names the test)
         a_f = None

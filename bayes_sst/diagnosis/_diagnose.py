@@ -282,6 +282,12 @@ def _shrink(before: float, after: float, floor: float) -> float:
     return float(min(1.0, 1.0 - (after**2 - reference**2) / excess))
 
 
+def _relative_shift(before: dict[str, float], after: dict[str, float]) -> dict[str, float | None]:
+    """(after - before)/before per base parameter; None where the base value is exactly 0 (no
+    information in the data), which has no relative change."""
+    return {k: (float((after[k] - before[k]) / before[k]) if before[k] != 0 else None) for k in before}
+
+
 def _between_test_share(before: ModelFit, after: ModelFit, names: Sequence[str]) -> float:
     """Share of the test-to-test variance of the per-test coefficients `names` (each relative to
     its population value) that the added terms explain:
@@ -460,7 +466,7 @@ def _stroke_view(series: Series, effects: Sequence[Effect], signals: SignalOptio
         "selected": [s.effect.name for s in selected], "ranking": ranking, "steps": steps,
         "noise_floor": floor, "rms_before": rms_before, "rms_after": rms_after,
         "shrink": _shrink(rms_before, rms_after, floor) if selected else 0.0,
-        "base_shift": {k: (float((f[k] - b[k]) / b[k]) if b[k] != 0 else None) for k in b},
+        "base_shift": _relative_shift(b, f),
         "base": dict(b, spread=base.spread), "final": dict(f, spread=final.spread),
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
     }
@@ -506,7 +512,8 @@ def diagnose(
             f"series {series.name!r} has {len(series.periodic_tests)} sine or triangle test(s); diagnose scores "
             f"each effect test by test, leaving one test out at a time, and needs at least {MIN_PERIODIC_TESTS}")
     tests = effect_data(series, signals)
-    for note in (note for t in tests for note in t.notes):
+    notes = [note for t in tests for note in t.notes]
+    for note in notes:
         say(f"!! {note}")
     max_stroke = max(float(np.max(np.abs(t.u))) for t in tests)
     scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": max_stroke})
@@ -539,14 +546,12 @@ def diagnose(
                       "rms_after": _rms(final.residuals, mask)}
     base_values = base.base()
     final_values = final.base()
-    # relative change; a base value of exactly 0 (no information in the data) has none
-    base_shift = {k: (float((final_values[k] - base_values[k]) / base_values[k]) if base_values[k] != 0 else None)
-                  for k in base_values}
+    base_shift = _relative_shift(base_values, final_values)
     selected_names = [s.effect.name for s in selected]
     shrink = _shrink(rms_before, rms_after, floor) if selected else 0.0
     shrink_basis = "residual"
-    between = sorted({n for s in selected for n in s.effect.between_tests})
     if selected and all(s.effect.between_tests for s in selected):
+        between = sorted({n for s in selected for n in s.effect.between_tests})
         shrink, shrink_basis = _between_test_share(base, final, between), "between_tests"
 
     stroke = None
@@ -606,5 +611,5 @@ def diagnose(
         figures={"tests": tests, "base": base, "final": final, "floors": floors},
         rms_unit=rms_unit,
         shrink_basis=shrink_basis,
-        notes=[note for t in tests for note in t.notes],
+        notes=notes,
     )

@@ -19,7 +19,8 @@ ACCELERATION_RMS_FACTOR = 1.5
 ACCELERATION_MIN_CORRELATION = 0.9
 
 
-def accelerometer_disagreement(a, u_filtered, cutoff_hz: float, fs: float, window: CycleWindow) -> str | None:
+def accelerometer_disagreement(a, u_filtered, cutoff_hz: float, fs: float, window: CycleWindow, *,
+                               a_low=None) -> str | None:
     """Why the recorded acceleration a cannot be the deck's, or None when it can.
 
     Over the steady window, with a_lp = low-pass(a), a_u = u_f'' (signals.second_derivative) and
@@ -31,12 +32,12 @@ def accelerometer_disagreement(a, u_filtered, cutoff_hz: float, fs: float, windo
     mis-scaled accelerometer moves Me and, through the sine tests' Me-Ke ridge, Ke (a channel of
     zeros gave Ke = -222 kN/m and a between-test spread of Ke of 21794 %); the noise term keeps a
     working but noisy accelerometer on a slow, small test (whose acceleration is mostly noise)
-    from being called faulty.
+    from being called faulty. a_low: low-pass(a) at cutoff_hz when the caller has it already.
     """
     span = slice(window.start, window.stop)
     a = np.asarray(a, dtype=float)
     from_u = second_derivative(np.asarray(u_filtered, dtype=float), fs)[span]
-    low = zero_phase_lowpass(a, cutoff_hz, fs)
+    low = zero_phase_lowpass(a, cutoff_hz, fs) if a_low is None else np.asarray(a_low, dtype=float)
     recorded = low[span]
     noise = white_noise_sd((a - low)[span]) * np.sqrt(min(1.0, 2.0 * cutoff_hz / fs))
     from_u = from_u - from_u.mean()

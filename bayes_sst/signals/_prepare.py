@@ -82,8 +82,9 @@ class SignalOptions:
     cutoff_multiple : low-pass cut-off as a multiple of the test frequency.
     reversal_band : samples with |v| below this share of the peak speed are left out.
     reversal_band_without_accelerometer : the band of a test whose acceleration is derived
-        from u (no `a` column, or one set aside by check_accelerometer); None uses reversal_band. Wider, because the derived
-        acceleration carries the rest's corner at a reversal (see band_for).
+        from u (no `a` column, or one set aside by check_accelerometer); None uses
+        reversal_band. Wider, because the derived acceleration carries the rest's corner at a
+        reversal (see band_for).
     steady_tolerance : relative amplitude band that defines a steady cycle.
     skip_cycles : steady cycles dropped at the start of the run (settling).
     samples_per_cutoff : kept samples per 1/fc; 2 puts the kept Nyquist frequency at fc.
@@ -357,9 +358,11 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         u_f = u_f - (record.u[0] - centred.u[0])
         record = centred
     measured_a = record.get("a")
+    # the recorded a in the analysis band, for the check and the noise estimate below
+    a_low = None if measured_a is None else zero_phase_lowpass(measured_a, cutoff, fs)
     notes: tuple[str, ...] = ()
     if measured_a is not None and options.check_accelerometer:
-        problem = accelerometer_disagreement(measured_a, u_f, cutoff, fs, window)
+        problem = accelerometer_disagreement(measured_a, u_f, cutoff, fs, window, a_low=a_low)
         if problem:
             notes = (f"{where}: test '{spec.id}': {problem}; it is ignored and a is derived from u",)
             measured_a = None
@@ -393,8 +396,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         # mid-stroke only: the friction step and a triangle's turn put the acceleration's own
         # sharp features near the reversals
         # and less the motion's band, whose curvature shows in second differences at high f/fs
-        measured_a = np.asarray(measured_a, dtype=float)
-        above_band = (measured_a - zero_phase_lowpass(measured_a, cutoff, fs))[window.start : window.stop]
+        above_band = (np.asarray(measured_a, dtype=float) - a_low)[window.start : window.stop]
         noise_sd = white_noise_sd(above_band, where=speed >= NOISE_SPEED_SHARE * peak_speed)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
