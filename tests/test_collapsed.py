@@ -252,3 +252,33 @@ def test_population_is_right_when_the_recorded_force_is_nearly_noise_free():
     for name, tolerance in (("Me", 0.03), ("Ke", 0.03), ("Ce", 0.05), ("Fmu", 0.05)):
         assert abs(summary["parameters"][name]["mean"] / truth[name] - 1) < tolerance, name
     assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05
+
+
+def test_numpy_potential_of_the_start_equals_numpyros_potential_energy():
+    """The sampler's start carries a potential computed in numpy (inference._model); NumPyro's
+    own potential_energy of the same model must give the same number, at the start and away
+    from it, with every site's prior and Jacobian."""
+    from numpyro.infer.util import potential_energy as numpyro_potential, unconstrain_fn
+
+    from bayes_sst.inference._model import ScaledPriors, potential_energy, table_force_model, unconstrained_start
+
+    rng = np.random.default_rng(7)
+    zs, table = _random_problem(rng, n_tests=4, n_samples=50)
+    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
+    priors = ScaledPriors(
+        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
+        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
+        spread_median=0.03, spread_log_sd=1.0, noise_loc=0.2, noise_log_sd=1.5,
+        varying=jnp.array([1.0, 0.0, 1.0, 1.0]),
+    )
+    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
+              "phi": np.array([0.3, -0.2, 0.8, 0.0]), "sigma": np.array([0.9, 1.1, 1.3, 0.7])}
+    z = unconstrained_start(values, priors)
+    z_numpyro = unconstrain_fn(table_force_model, (table, priors), {}, {k: jnp.asarray(v) for k, v in values.items()})
+    for name in values:
+        np.testing.assert_allclose(z[name], np.asarray(z_numpyro[name]), atol=1e-12)
+    for shift in (0.0, 0.7, -1.5):
+        moved = {name: value + shift * rng.standard_normal(np.shape(value)) for name, value in z.items()}
+        expected = float(numpyro_potential(table_force_model, (table, priors), {},
+                                           {k: jnp.asarray(v) for k, v in moved.items()}))
+        assert potential_energy(moved, numpy_table, priors) == pytest.approx(expected, rel=1e-10, abs=1e-8)

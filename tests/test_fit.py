@@ -173,19 +173,21 @@ def _white_force_noise_series():
 def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_a_shared_mass():
     """With only white force noise and the accelerometer read as recorded (no synchronous
     average, no noise correction), the accelerometer's noise (times Me) dominates the slow sine tests' residual,
-    and their per-test Me slides along the Me-Ke ridge toward 0 (population Me -43 %, its
-    between-test sd 73 %). fit must notice the implausible mass spread, refit with Me shared
-    (this series' mass is the same in every test) and say so in the summary; without the
-    automatic refit the failure is visible and flagged."""
+    and their per-test Me can slide along the Me-Ke ridge toward 0. The posterior then has a
+    second mode: with seed 2 (measured 2026-11-25) some chains slide (population Me -10 %,
+    R-hat 1.53, between-test sd 17 %); seeds 1 and 3 stay at the right one (spread 0.8 %).
+    fit must notice the implausible mass spread, refit with Me shared (this series' mass is
+    the same in every test) and say so in the summary; without the automatic refit the
+    failure is visible and flagged."""
     series = _white_force_noise_series()
     truth = series.extra["truth"]["Me"]
     as_recorded = SignalOptions(periodic_acceleration=False, accelerometer_noise=False)
-    raw = summarize(fit(series, seed=1, auto_share_mass=False, signals=as_recorded).tree)
+    raw = summarize(fit(series, seed=2, auto_share_mass=False, signals=as_recorded).tree)
     assert raw["between_test_spread"]["Me"]["relative_sd_mean"] > 0.10
     assert raw["parameters"]["Me"]["mean"] < 0.9 * truth  # the failure itself
     assert any("moving mass varies" in w and "--shared Me" in w for w in raw["warnings"])
 
-    result = fit(series, seed=1, signals=as_recorded)
+    result = fit(series, seed=2, signals=as_recorded)
     assert "Me" in result.priors.shared and "mass_refit" in result.tree.attrs
     summary = summarize(result.tree)
     assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.01

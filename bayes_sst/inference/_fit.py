@@ -164,9 +164,10 @@ def fit(
     import jax
     import jax.numpy as jnp
     from numpyro.infer import MCMC, NUTS, init_to_value
+    from numpyro.infer.util import ParamInfo
 
     from bayes_sst.inference._collapsed import moment_table
-    from bayes_sst.inference._model import ScaledPriors, table_force_model
+    from bayes_sst.inference._model import ScaledPriors, potential_energy, table_force_model, unconstrained_start
     from bayes_sst.inference._posterior import build_tree
 
     settings = SamplerSettings(chains=chains, draws=draws, warmup=warmup, seed=seed)
@@ -226,10 +227,24 @@ def fit(
         )
         _say(progress, f"sampling {chains} chains x ({warmup} warm-up + {draws} draws), NUTS ({chain_method}) ...")
         start = time.perf_counter()
+        # every chain starts at the same point, with its potential computed outside the
+        # compiled sampler and a zero gradient (see bayes_sst.inference._model)
+        z = unconstrained_start({name: np.asarray(value) for name, value in start_values.items()}, scaled)
+        lead = (chains,) if chains > 1 else ()
+
+        def per_chain(value):
+            return jnp.broadcast_to(jnp.asarray(value), lead + np.shape(value))
+
+        init = ParamInfo(
+            z={name: per_chain(value) for name, value in z.items()},
+            potential_energy=per_chain(potential_energy(z, moment_table(moments, np), scaled)),
+            z_grad={name: per_chain(np.zeros_like(value)) for name, value in z.items()},
+        )
         mcmc.run(
             jax.random.PRNGKey(seed),
             table,
             scaled,
+            init_params=init,
             extra_fields=("diverging", "num_steps", "accept_prob", "energy", "potential_energy", "adapt_state.step_size"),
         )
         samples = jax.device_get(mcmc.get_samples(group_by_chain=True))
