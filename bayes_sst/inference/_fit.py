@@ -235,11 +235,13 @@ def fit(
         def per_chain(value):
             return jnp.broadcast_to(jnp.asarray(value), lead + np.shape(value))
 
+        start_potential = potential_energy(z, moment_table(moments, np), scaled)
+        # a start the numpy potential cannot evaluate is left to NumPyro's own initialisation
         init = ParamInfo(
             z={name: per_chain(value) for name, value in z.items()},
-            potential_energy=per_chain(potential_energy(z, moment_table(moments, np), scaled)),
+            potential_energy=per_chain(start_potential),
             z_grad={name: per_chain(np.zeros_like(value)) for name, value in z.items()},
-        )
+        ) if np.isfinite(start_potential) else None
         mcmc.run(
             jax.random.PRNGKey(seed),
             table,

@@ -1,4 +1,5 @@
-"""The NumPyro model: priors, the collapsed likelihood, nothing else."""
+"""The NumPyro model (priors and the collapsed likelihood) and, in numpy, the sampler's start:
+its sites in NumPyro's unconstrained space and their potential energy."""
 
 from __future__ import annotations
 
