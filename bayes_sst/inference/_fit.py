@@ -187,6 +187,8 @@ def fit(
     for note in notes:
         _say(progress, f"!! {note}")
     table = moment_table(moments, jnp)
+    # the same table in numpy, for the start's potential (computed outside the compiled sampler)
+    start_table = moment_table(moments, np)
 
     def sample(priors: Priors):
         scaled = ScaledPriors(
@@ -235,7 +237,7 @@ def fit(
         def per_chain(value):
             return jnp.broadcast_to(jnp.asarray(value), lead + np.shape(value))
 
-        start_potential = potential_energy(z, moment_table(moments, np), scaled)
+        start_potential = potential_energy(z, start_table, scaled)
         # a start the numpy potential cannot evaluate is left to NumPyro's own initialisation
         init = ParamInfo(
             z={name: per_chain(value) for name, value in z.items()},

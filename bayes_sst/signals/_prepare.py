@@ -359,7 +359,8 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         record = centred
     measured_a = record.get("a")
     # the recorded a in the analysis band, for the check and the noise estimate below
-    a_low = None if measured_a is None else zero_phase_lowpass(measured_a, cutoff, fs)
+    a_low = (zero_phase_lowpass(measured_a, cutoff, fs)
+             if measured_a is not None and (options.check_accelerometer or options.accelerometer_noise) else None)
     notes: tuple[str, ...] = ()
     if measured_a is not None and options.check_accelerometer:
         problem = accelerometer_disagreement(measured_a, u_f, cutoff, fs, window, a_low=a_low)
