@@ -26,7 +26,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     chains, draws = samples["alpha"].shape
     flat = {name: np.reshape(np.asarray(value), (chains * draws,) + value.shape[2:]) for name, value in samples.items()}
     n_draws, n_tests = chains * draws, moments.n_tests
-    # numpy, draw by draw: the same equations as the sampler's, without an XLA compilation
+    # numpy, in blocks of draws: the same equations as the sampler's, without an XLA compilation
     host_table = moment_table(moments, np)
     prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
     spread = np.asarray(samples["spread"]) * np.asarray(scaled.varying)  # a shared coefficient's spread is 0
@@ -37,10 +37,13 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     mu = np.empty((n_draws, 4))
     theta = np.empty((n_draws, n_tests, 4))
     per_test = np.empty((n_draws, n_tests))
-    for i in range(n_draws):
-        mu[i], theta[i], per_test[i] = draw_coefficients(
-            normal_mu[i], normal_theta[i], host_table, flat["alpha"][i], flat["spread"][i],
-            flat["phi"][i], flat["sigma"][i], prior_mean, prior_sd, xp=np,
+    # blocks of about 20,000 (draw, test) pairs: a few MB of intermediates each
+    block = max(1, 20_000 // max(n_tests, 1))
+    for lo in range(0, n_draws, block):
+        part = slice(lo, min(lo + block, n_draws))
+        mu[part], theta[part], per_test[part] = draw_coefficients(
+            normal_mu[part].T, normal_theta[part], host_table, flat["alpha"][part], flat["spread"][part].T,
+            flat["phi"][part], flat["sigma"][part], prior_mean, prior_sd, xp=np,
         )
     scale = moments.coefficient_scale
     mu = mu * scale

@@ -35,7 +35,13 @@ from bayes_sst.signals import PreparedTest
 
 ALPHA_MIN = 0.05
 ALPHA_MAX = 1.95
-ALPHA_STEP = 0.0125
+# The damping column is interpolated between nodes by cubic Hermite polynomials with exact
+# alpha-derivatives, so the grid can be coarse; every node costs the low-pass filtering of two
+# columns per test, most of the signal preparation. Measured on the 200-test benchmark series
+# against a 0.0125 grid: the collapsed log-likelihood moves by at most 5e-4 nats for alpha in
+# 0.3-1.8 (0.016 nats at alpha = 0.13, far out in the tails), and the moments take 1.25 s
+# instead of 2.0 s. (A 0.05 grid moved it by 0.46 nats at 0.13.)
+ALPHA_STEP = 0.025
 COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
 
 
