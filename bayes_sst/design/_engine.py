@@ -37,7 +37,6 @@ from bayes_sst.inference import _smalllinalg as sl
 from bayes_sst.inference._statistics import (
     ALPHA_MAX,
     ALPHA_MIN,
-    ALPHA_STEP,
     COEFFICIENTS,
     acceleration_noise_correction,
     pair_moments,
@@ -110,11 +109,20 @@ def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
     )
 
 
+# The engine interpolates the lagged MOMENTS in alpha (cubic Hermite, slopes by finite
+# differences), which, unlike the fit's interpolation of the damping column, does not keep a
+# moment matrix positive semidefinite; it needs a finer grid than the fit's. On the fit's 0.025
+# grid a slow-marked test's Fisher information of a triangle test came out indefinite
+# (negative variances); on 0.0125 it did not. Only the draws' alpha range is tabulated.
+DESIGN_ALPHA_STEP = 0.0125
+
+
 def alpha_grid_for(alpha: np.ndarray, margin: float = 0.05) -> np.ndarray:
-    """The fit's alpha grid (step ALPHA_STEP), restricted to the draws' range plus a margin."""
-    full = np.arange(ALPHA_MIN, ALPHA_MAX + 0.5 * ALPHA_STEP, ALPHA_STEP)
+    """An alpha grid of step DESIGN_ALPHA_STEP over the draws' range plus a margin."""
+    step = DESIGN_ALPHA_STEP
+    full = np.arange(ALPHA_MIN, ALPHA_MAX + 0.5 * step, step)
     lo, hi = float(alpha.min()) - margin, float(alpha.max()) + margin
-    keep = (full >= lo - ALPHA_STEP) & (full <= hi + ALPHA_STEP)
+    keep = (full >= lo - step) & (full <= hi + step)
     grid = full[keep]
     if len(grid) < 2:
         grid = full[max(0, np.searchsorted(full, lo) - 1):][:2]
