@@ -109,7 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="run folder to create")
     p.add_argument("--chains", type=int, default=4)
     p.add_argument("--draws", type=int, default=500, help="draws per chain after warm-up")
-    p.add_argument("--warmup", type=int, default=500, help="warm-up iterations per chain")
+    p.add_argument("--warmup", type=int, default=300, help="warm-up iterations per chain")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--prior", choices=("generic", "physics"), default="generic",
                    help="generic weak priors, or centred by the series' table description")

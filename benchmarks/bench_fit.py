@@ -348,7 +348,7 @@ def main():
     out = {
         "command": " ".join([Path(sys.executable).name] + sys.argv),
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version()},
-        "settings": {"spread": SPREAD, "seed": args.seed, "fit": "defaults (4 chains, 500 warm-up + 500 draws)",
+        "settings": {"spread": SPREAD, "seed": args.seed, "fit": "defaults (4 chains, 300 warm-up + 500 draws)",
                      "peer_runs": runs, "peer_budget_s": args.peer_budget},
         "results": results,
         "table": table,

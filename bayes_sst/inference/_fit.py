@@ -21,7 +21,11 @@ class SamplerSettings:
 
     chains: int = 4
     draws: int = 500
-    warmup: int = 500
+    # the warm-up starts from asymptotic posterior scales (_initial_inverse_mass), so 300
+    # iterations adapt as well as 500 did: 100 virtual-table series covered and converged as
+    # before (100 of 100, against 99 with 500), 24 independent ones too, bulk ESS at 200 tests
+    # 1800-2000 either way; the 200-test fit samples about 2.5 s faster
+    warmup: int = 300
     seed: int = 0
     target_accept: float = 0.85
     max_tree_depth: int = 8
@@ -135,7 +139,7 @@ def fit(
     *,
     chains: int = 4,
     draws: int = 500,
-    warmup: int = 500,
+    warmup: int = 300,
     seed: int = 0,
     prior: str | Priors = "generic",
     signals: SignalOptions = SignalOptions(),
