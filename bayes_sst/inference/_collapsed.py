@@ -26,7 +26,9 @@ and with Q = S0^-1 + sum H_j, r = S0^-1 m0 + sum h_j:
     P_j^-1 = D B_j^-1 D.
 
 test_terms evaluates H_j and h_j in forms without the subtractions above (see there), and the
-noise sd entering A, b, c is sqrt(sigma^2 + floor^2) (RELATIVE_NOISE_FLOOR).
+noise sd entering A, b, c is sqrt(sigma^2 + floor^2) (RELATIVE_NOISE_FLOOR). The sampler
+differentiates the likelihood through marginal_gradient's closed form (Fisher's identity), not
+by tracing the factorisations back.
 """
 
 from __future__ import annotations
@@ -160,8 +162,9 @@ def _with_damping_row(base, row):
 
 def damping_rows(table: MomentTable, alpha, xp=jnp):
     """Row DAMPING of the lag sums S_l(alpha) and its alpha-derivative, each (3, 5, J), or
-    (3, 5, draws, J) for alpha (draws,): the damping column is interpolated as d = sum_k w_k K_k, so its row is sum_k w_k S(K_k, .) and
-    its diagonal w' S(K, K) w (see MomentTable)."""
+    (3, 5, draws, J) for alpha (draws,): the damping column is interpolated as
+    d = sum_k w_k K_k, so its row is sum_k w_k S(K_k, .) and its diagonal w' S(K, K) w (see
+    MomentTable)."""
     g, weights, slopes = hermite_weights(table, alpha, xp)
     cell_cross, cell_gram = table.cross[g], table.gram[g]  # (3, 4, 4, J)
     if xp.ndim(alpha):  # one alpha per draw: (draws, 3, 4, 4, J) -> (3, 4, 4, draws, J)
@@ -278,7 +281,7 @@ def _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp):
         + 0.5 * xp.sum(whitened_r * whitened_r)
         - 0.5 * xp.sum(prior_precision * prior_mean * prior_mean)
     )
-    return value, terms, Q_chol, whitened_r
+    return value, terms, Q_chol, r
 
 
 def marginal_log_likelihood(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jnp):
@@ -319,12 +322,11 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
     Returns (value, (dW, dn, ds, drho, dm0, ds0)).
     """
     var = noise * noise
-    value, terms, Q_chol, _ = _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp)
+    value, terms, Q_chol, r = _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp)
     W = _symmetric(whitened, xp)
     scale = xp.maximum(rho, SPREAD_FLOOR)
     Q_root_inverse = sl.solve_lower(Q_chol, xp.eye(4), xp)  # L^-1, Q^-1 = L^-T L^-1
     Q_inverse = xp.sum(Q_root_inverse[:, :, None] * Q_root_inverse[:, None, :], axis=0)
-    _, r = population_posterior(terms, prior_mean, prior_sd, xp)
     mu_bar = xp.sum(Q_inverse * r[None, :], axis=1)
 
     B_inverse = terms.B_inverse
