@@ -256,9 +256,13 @@ def population_posterior(terms: TestTerms, prior_mean, prior_sd, xp=jnp):
     return Q, r
 
 
+def _noise_sd(table: MomentTable, sigma, xp):
+    """The likelihood's noise sd sqrt(sigma^2 + floor^2) (RELATIVE_NOISE_FLOOR)."""
+    return xp.sqrt(sigma * sigma + table.noise_floor * table.noise_floor)
+
+
 def _terms(table, alpha, rho, phi, sigma, xp):
-    noise = xp.sqrt(sigma * sigma + table.noise_floor * table.noise_floor)
-    return test_terms(whitened_at(table, alpha, phi, xp), table.n_pairs, noise, rho, xp)
+    return test_terms(whitened_at(table, alpha, phi, xp), table.n_pairs, _noise_sd(table, sigma, xp), rho, xp)
 
 
 def _symmetric(whitened, xp):
@@ -268,7 +272,10 @@ def _symmetric(whitened, xp):
 
 
 def _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp):
-    terms = test_terms(_symmetric(whitened, xp), n_pairs, noise, rho, xp)
+    """The value, and what marginal_gradient reads: the test terms, the population step's
+    Cholesky factor and r, and W's symmetric part."""
+    W = _symmetric(whitened, xp)
+    terms = test_terms(W, n_pairs, noise, rho, xp)
     Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
     Q_chol = sl.cholesky_by_columns(Q, xp)
     # r' Q^-1 r = |L^-1 r|^2: one triangular solve instead of two
@@ -281,7 +288,7 @@ def _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp):
         + 0.5 * xp.sum(whitened_r * whitened_r)
         - 0.5 * xp.sum(prior_precision * prior_mean * prior_mean)
     )
-    return value, terms, Q_chol, r
+    return value, terms, Q_chol, r, W
 
 
 def marginal_log_likelihood(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jnp):
@@ -292,7 +299,8 @@ def marginal_log_likelihood(whitened, n_pairs, noise, rho, prior_mean, prior_sd,
 
 
 def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jnp):
-    """marginal_log_likelihood and its gradient with respect to every argument, in closed form.
+    """marginal_log_likelihood and its gradient with respect to W, the noise sd, the spreads and
+    the population prior, in closed form (n_pairs is data).
 
     Fisher's identity: the gradient of log p(y | psi) is the posterior expectation of the
     gradient of the complete-data log density log p(y, theta, mu | psi), and with every piece
@@ -307,7 +315,6 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
 
         dl/dW_j   = -E[v_j v_j'] / (2 s_j^2)
         dl/ds_j   = -n_j / s_j + tr(W_j E[v_j v_j']) / s_j^3
-        dl/dn_j   = -1/2 log(2 pi s_j^2)
         dl/drho_k = (1/rho_k) sum_j (E[(theta_jk - mu_k)^2] / rho_k^2 - 1),
             E[(theta_j - mu)(theta_j - mu)'] / (rho rho') = B^-1 + u u' + M Q^-1 M' on the
             diagonal, M = B^-1 D A  (theta_j - mu = -D M mu + D B^-1 D b + noise given y)
@@ -319,11 +326,10 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
     gradient against 58 us for the value, and most of NUTS's time. A spread below SPREAD_FLOOR
     (a shared coefficient) gets a zero gradient, as the floor's maximum gives it.
 
-    Returns (value, (dW, dn, ds, drho, dm0, ds0)).
+    Returns (value, (dW, ds, drho, dm0, ds0)).
     """
     var = noise * noise
-    value, terms, Q_chol, r = _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp)
-    W = _symmetric(whitened, xp)
+    value, terms, Q_chol, r, W = _marginal(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp)
     scale = xp.maximum(rho, SPREAD_FLOOR)
     Q_root_inverse = sl.solve_lower(Q_chol, xp.eye(4), xp)  # L^-1, Q^-1 = L^-T L^-1
     Q_inverse = xp.sum(Q_root_inverse[:, :, None] * Q_root_inverse[:, None, :], axis=0)
@@ -348,7 +354,6 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
     d_whitened = -outer / (2.0 * var)
     expected_square = xp.sum(W * outer, axis=(0, 1))
     d_noise = -n_pairs / noise + expected_square / (var * noise)
-    d_n_pairs = -0.5 * (LOG_2PI + 2.0 * xp.log(noise))
 
     M = xp.sum(B_inverse[:, :, None, :] * (scale[:, None, None] * terms.A)[None], axis=1)
     MQ = xp.sum(M[:, :, None, :] * Q_inverse[None, :, :, None], axis=1)
@@ -361,11 +366,7 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
     prior_var = prior_sd * prior_sd
     d_prior_mean = offset / prior_var
     d_prior_sd = -1.0 / prior_sd + (offset * offset + xp.stack([Q_inverse[k, k] for k in range(4)])) / (prior_var * prior_sd)
-    return value, (d_whitened, d_n_pairs, d_noise, d_rho, d_prior_mean, d_prior_sd)
-
-
-def _noise_sd(table: MomentTable, sigma, xp):
-    return xp.sqrt(sigma * sigma + table.noise_floor * table.noise_floor)
+    return value, (d_whitened, d_noise, d_rho, d_prior_mean, d_prior_sd)
 
 
 def _collapsed_value(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp):
@@ -384,7 +385,7 @@ def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, p
     rows, d_rows = damping_rows(table, alpha, xp)
     S = _with_damping_row(table.constant, rows)
     noise = _noise_sd(table, sigma, xp)
-    value, (d_W, _, d_noise, d_rho, d_prior_mean, d_prior_sd) = marginal_gradient(
+    value, (d_W, d_noise, d_rho, d_prior_mean, d_prior_sd) = marginal_gradient(
         _lagged(S, phi), table.n_pairs, noise, rho, prior_mean, prior_sd, xp)
     d_phi = xp.sum(d_W * (2.0 * phi * S[2] - S[1]), axis=(0, 1))
     d_row = _lagged(d_rows, phi)  # row DAMPING of dW/dalpha, (5, J); d_W is symmetric
