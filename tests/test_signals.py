@@ -99,6 +99,20 @@ def test_zero_phase_lowpass_filters_along_axis():
     assert np.max(np.abs(along_last[1][500:1500])) < 1e-6
 
 
+def test_zero_phase_lowpass_is_scipys_forward_backward_filter():
+    # the steady-state start is cached per design; the result must be scipy's sosfiltfilt
+    # (odd extension, default pad) to rounding, along any axis
+    from scipy import signal as sp_signal
+
+    from bayes_sst.signals._filters import lowpass_sos
+
+    rng = np.random.default_rng(3)
+    for shape, axis in (((700,), -1), ((3, 400), -1), ((400, 3), 0), ((2, 300, 4), 1)):
+        x = rng.normal(size=shape).cumsum(axis=axis) + 5.0
+        expected = sp_signal.sosfiltfilt(lowpass_sos(7.0, 200.0), x, axis=axis)
+        np.testing.assert_allclose(zero_phase_lowpass(x, 7.0, 200.0, axis=axis), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
 @pytest.mark.parametrize("cutoff", [500.0, 600.0])
 def test_lowpass_sos_rejects_cutoff_at_or_above_nyquist(cutoff):
     with pytest.raises(ValueError, match=rf"{cutoff:g} Hz.*Nyquist frequency 500 Hz"):

@@ -1,15 +1,18 @@
 """The diagnosis's view of a series: every periodic test as EffectData (see bayes_sst.effects).
 
-Signal treatment as in bayes_sst.signals (cut-off 4f, decimation to about 8f), with one
-difference: every sample of the steady window enters (no reversal band), because stiction
-lives at the reversals. (A cut-off of 8f was tried: the twin's sticking at reversals then
-leaves force transients that the base model cannot follow and the test-to-test spread
-absorbs them, which blurs every effect.)
+Three views of the same tests, each a SignalOptions (below): the default view (the fit's
+treatment: cut-off 4f, reversal band and window), the stroke view (8f, samples slower than
+35 % of the peak speed left out) for effects that grow with |u|, and the reversal view (every
+sample of the steady window) for stiction, which lives at the reversals. (A cut-off of 8f was
+tried for the default view: the twin's sticking at reversals then leaves force transients
+that the base model cannot follow and the test-to-test spread absorbs them, which blurs
+every effect.)
 """
 
 from __future__ import annotations
 
 import math
+import zlib
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -18,18 +21,25 @@ from bayes_sst.effects import EffectData
 from bayes_sst.io import Series
 from bayes_sst.signals import SignalOptions, prepare_series, time_derivative, without_steady_offsets, zero_phase_lowpass
 
-# The default view keeps the reversal samples, where a short velocity kernel's noise flips
-# sign(v) from sample to sample: with the fit's 2.5 ms kernel the noise floor rose from about
-# 370 N to 435 N on the twin and a 1 ms delay and a 5 t specimen at 12 Hz were no longer found
-# (measured); this view therefore keeps the 10 ms kernel (its small bias of Fmu and Ce is the
-# same with and without an effect, so it cancels in the comparison).
-# Neither view weights the reversal band out before filtering (signals.reversal_weight): the
-# selection thresholds were set on the plain low-pass (docs/diagnosis.md) and have not been
-# re-run with the fit's newer treatment (the default view has no band to weight anyway);
-# for the same reason both read the accelerometer as recorded, not its cycle-synchronous
-# average (signals.periodic_component).
-DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0, reversal_band_without_accelerometer=None,
-                                  velocity_smoothing_s=0.01, periodic_acceleration=False)
+# The default view treats the signals as the fit does: the reversal band (|v| < 10 % of the
+# peak speed) is left out and force and regressors are multiplied by the reversal weight before
+# the low-pass (signals.reversal_weight), with the fit's 2.5 ms velocity kernel. Why: at each
+# reversal the table rests and breaks away, the Coulomb step is not the physics there, and a
+# view that keeps those samples lets their misfit into the base model. On an independent
+# generator's clean series whose table rests for up to a quarter of each cycle (seed 1), the
+# base model of the earlier view (every sample, 10 ms kernel) came out with Me 28 % and Fmu
+# 55 % low and a test-to-test spread at the grid's 18 %; a 20 % drift and a 2 t specimen at
+# 14 Hz were missed on it. With the window: Me -3 %, Fmu -4 %, spread 3.5 %, both found
+# (docs/diagnosis.md). The accelerometer is read as recorded, not as its cycle-synchronous
+# average (signals.periodic_component), as when the selection thresholds were set.
+DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.1, reversal_band_without_accelerometer=None,
+                                  reversal_window=True, velocity_smoothing_s=0.0025, periodic_acceleration=False)
+# The reversal view, for stiction, which lives inside the band: every sample of the steady
+# window, no weight. A short velocity kernel's noise flips sign(v) from sample to sample at the
+# reversals, so this view keeps a 10 ms kernel (with 2.5 ms the twin's floor rose from about
+# 370 N to 435 N, measured).
+REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0, reversal_band_without_accelerometer=None,
+                                 reversal_window=False, velocity_smoothing_s=0.01, periodic_acceleration=False)
 # The stroke view, for effects that grow with |u| (nonlinear_stiffness, position_friction,
 # strut_inertia): a wider band and no samples slower than 35 % of the peak speed. Under a sine
 # |u| is largest exactly where the table reverses and rests; with the 4f low-pass the rest
@@ -40,6 +50,8 @@ DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.0, revers
 STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_band_without_accelerometer=None,
                                reversal_window=False, periodic_acceleration=False)
 DEFAULT_STRUT_H = 1.0
+# Monte Carlo draws of the accelerometer's noise per test (EffectData.a_noise), as in the fit
+NOISE_DRAWS = 24
 
 
 def strut_height(series: Series) -> float:
@@ -91,6 +103,23 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             position = (p.order - first) / (last - first)
         else:
             position = i / max(1, len(prepared) - 1)
+        weighted = {}
+        force = zero_phase_lowpass(record.F, cutoff, fs)[lo:hi]
+        if p.weight_full is not None:
+            # the fit's reversal window (signals.reversal_weight): force and regressors are
+            # multiplied by w before the low-pass, so the rest at each reversal stays out
+            w = p.weight_full[lo:hi]
+            force = zero_phase_lowpass(np.asarray(record.F, dtype=float)[lo:hi] * w, cutoff, fs)
+            weighted = dict(
+                weight_full=w,
+                u_model_full=zero_phase_lowpass(np.asarray(record.u, dtype=float)[lo:hi] * w, cutoff, fs),
+                a_model_full=zero_phase_lowpass(a_raw[lo:hi] * w, cutoff, fs),
+                F_raw=np.asarray(record.F, dtype=float)[lo:hi],
+            )
+        a_noise = None
+        if p.acceleration_measured and p.acceleration_noise_sd > 0.0:
+            rng = np.random.default_rng(zlib.crc32(p.id.encode()))
+            a_noise = rng.normal(0.0, p.acceleration_noise_sd, (NOISE_DRAWS, hi - lo))
         out.append(EffectData(
             id=p.id,
             frequency_hz=p.frequency_hz,
@@ -105,10 +134,12 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             u_full=zero_phase_lowpass(record.u, cutoff, fs)[lo:hi],
             v_full=p.velocity_full[lo:hi],
             a_full=zero_phase_lowpass(a_raw, cutoff, fs)[lo:hi],
-            F_full=zero_phase_lowpass(record.F, cutoff, fs)[lo:hi],
+            F_full=force,
             a_record=a_raw[:hi],
             period_samples=p.window.period_samples,
             friction_load=p.friction_load,
             notes=p.notes,
+            a_noise_full=a_noise,
+            **weighted,
         ))
     return out

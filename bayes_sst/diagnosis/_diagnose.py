@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, STROKE_SIGNALS, effect_data
+from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, REVERSAL_SIGNALS, STROKE_SIGNALS, effect_data
 from bayes_sst.diagnosis._engine import ModelFit, Scorer
 from bayes_sst.diagnosis._oil import oil_column_check
 from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
@@ -82,6 +82,9 @@ STRONG_AMPLITUDE_Z = 5.0
 REVERSAL_SHARE = 0.2
 # effects that grow with |u|, scored on the stroke view (bayes_sst.diagnosis._data.STROKE_SIGNALS)
 STROKE_EFFECTS = ("nonlinear_stiffness", "position_friction", "strut_inertia")
+# effects that live inside the reversal band, scored on the reversal view
+# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: every sample, no reversal window)
+REVERSAL_EFFECTS = ("stiction",)
 
 
 @dataclass
@@ -105,6 +108,7 @@ class Diagnosis:
     timings: dict[str, float]
     settings: dict[str, Any]
     stroke: dict[str, Any] | None = None
+    reversal: dict[str, Any] | None = None
     # "N" for the force residual; "response" when the figures are the oil column's
     # command-to-motion misfit (dimensionless |H| units), the only finding or the only data
     rms_unit: str = "N"
@@ -158,6 +162,7 @@ class Diagnosis:
             "steps": self.steps,
             "oil_column": self.oil,
             "stroke_view": self.stroke,
+            "reversal_view": self.reversal,
             "timings_s": self.timings,
             "settings": self.settings,
             "units": "SI (N, kg, m, s, Hz); score and score_se in nats (log predictive density)",
@@ -169,9 +174,9 @@ class Diagnosis:
 def full_rate_residual(test: EffectData, fit: ModelFit, j: int) -> np.ndarray:
     """e = F - m_payload*a - X theta_j at every full-rate sample (base coefficients only)."""
     theta = fit.theta[j][:4]
-    model = (theta[0] * test.a_full + theta[1] * test.u_full + theta[2] * test.damping_full(fit.alpha)
-             + theta[3] * test.sign_full())
-    return test.F_full - test.payload_kg * test.a_full - model
+    a, u = test.model_a_full, test.model_u_full
+    model = theta[0] * a + theta[1] * u + theta[2] * test.damping_full(fit.alpha) + theta[3] * test.sign_full()
+    return test.F_full - test.payload_kg * a - model
 
 
 def noise_floor(test: EffectData, residual_full: np.ndarray) -> float:
@@ -447,19 +452,19 @@ def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
     return floors, float(np.sqrt(np.sum(n * floors**2) / n.sum()))
 
 
-def _stroke_view(series: Series, effects: Sequence[Effect], signals: SignalOptions, say, timings) -> dict[str, Any]:
-    """Score the effects that grow with |u| on the stroke view (STROKE_SIGNALS: cut-off 8f, samples
-    slower than 35 % of the peak speed left out), against that view's own base model."""
-    options = STROKE_SIGNALS if signals == DIAGNOSIS_SIGNALS else signals
+def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions, view: str, say,
+               timings) -> dict[str, Any]:
+    """Score `effects` on another view of the series (STROKE_SIGNALS or REVERSAL_SIGNALS), against
+    that view's own base model."""
     tests = effect_data(series, options)
     stroke = max(float(np.max(np.abs(t.u))) for t in tests)
     scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
-    say(f"stroke view: screening {len(effects)} effects that grow with |u| ...")
+    say(f"{view} view: screening {', '.join(e.name for e in effects)} ...")
     base = fit_base(scorer)
     _, floor = _floor(tests, base)
-    selected, final, ranking, steps = _select(scorer, base, effects, floor, say, timings, "stroke_")
+    selected, final, ranking, steps = _select(scorer, base, effects, floor, say, timings, f"{view}_")
     for entry in ranking:
-        entry["view"] = "stroke"
+        entry["view"] = view
     rms_before, rms_after = _rms(base.residuals), _rms(final.residuals)
     b, f = base.base(), final.base()
     return {
@@ -469,6 +474,8 @@ def _stroke_view(series: Series, effects: Sequence[Effect], signals: SignalOptio
         "base_shift": _relative_shift(b, f),
         "base": dict(b, spread=base.spread), "final": dict(f, spread=final.spread),
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
+        "reversal_window": options.reversal_window,
+        "_figures": {"tests": tests, "base": base},  # for the page, not the json
     }
 
 
@@ -531,8 +538,9 @@ def diagnose(
     rms_before = _rms(base.residuals)
     where = locate(tests, base.residuals, floors)
 
-    main_effects = [e for e in effects if e.name not in STROKE_EFFECTS]
+    main_effects = [e for e in effects if e.name not in STROKE_EFFECTS + REVERSAL_EFFECTS]
     stroke_effects = [e for e in effects if e.name in STROKE_EFFECTS]
+    reversal_effects = [e for e in effects if e.name in REVERSAL_EFFECTS]
     say(f"screening {len(main_effects)} candidate effects ...")
     selected, current, ranking, steps = _select(scorer, base, main_effects, floor, say, timings)
     final = current
@@ -554,20 +562,28 @@ def diagnose(
         between = sorted({n for s in selected for n in s.effect.between_tests})
         shrink, shrink_basis = _between_test_share(base, final, between), "between_tests"
 
-    stroke = None
-    if stroke_effects:
+    side_views: dict[str, dict[str, Any] | None] = {"stroke": None, "reversal": None}
+    side_figures: dict[str, dict[str, Any]] = {}
+    default_view = signals == DIAGNOSIS_SIGNALS
+    for view, view_effects, options in (("stroke", stroke_effects, STROKE_SIGNALS if default_view else signals),
+                                        ("reversal", reversal_effects, REVERSAL_SIGNALS if default_view else signals)):
+        if not view_effects:
+            continue
         t0 = time.perf_counter()
-        stroke = _stroke_view(series, stroke_effects, signals, say, timings)
-        timings["stroke_view"] = time.perf_counter() - t0
-        ranking = sorted(ranking + stroke.pop("ranking"), key=lambda r: -r["score"])
-        steps += stroke.pop("steps")
-        if stroke["selected"]:
-            selected_names += stroke["selected"]
-            if not selected:
-                # found only in the stroke view: report that view's residuals and shift
-                floor, rms_before, rms_after, shrink = (stroke["noise_floor"], stroke["rms_before"],
-                                                        stroke["rms_after"], stroke["shrink"])
-                base_shift = stroke["base_shift"]
+        side = side_views[view] = _side_view(series, view_effects, options, view, say, timings)
+        timings[f"{view}_view"] = time.perf_counter() - t0
+        ranking = sorted(ranking + side.pop("ranking"), key=lambda r: -r["score"])
+        steps += side.pop("steps")
+        side_figures[view] = side.pop("_figures")
+        if side["selected"]:
+            found_before = bool(selected_names)
+            selected_names += side["selected"]
+            if not found_before:
+                # found only in this view: report that view's residuals and shift
+                floor, rms_before, rms_after, shrink = (side["noise_floor"], side["rms_before"],
+                                                        side["rms_after"], side["shrink"])
+                base_shift = side["base_shift"]
+    stroke = side_views["stroke"]
 
     t0 = time.perf_counter()
     oil = oil_column_check(series)
@@ -582,7 +598,7 @@ def diagnose(
             say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f})")
             selected_names.append("oil_column")
             oil["selected"] = True
-            if not selected and not (stroke and stroke["selected"]):
+            if not selected and not any(v and v["selected"] for v in side_views.values()):
                 # the oil column is the only finding: report its own (frequency-response) misfit
                 floor, rms_before, rms_after, shrink = (oil["noise_floor"], oil["rms_before"],
                                                         oil["rms_after"], oil["shrink"])
@@ -604,11 +620,12 @@ def diagnose(
         steps=steps,
         oil=oil,
         stroke=stroke,
+        reversal=side_views["reversal"],
         timings=timings,
         settings={"z_select": Z_SELECT, "min_score": MIN_SCORE, "sign_p": SIGN_P, "improved_nats": IMPROVED_NATS, "z_loss": Z_LOSS,
                   "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,
                   "tests": [t.id for t in tests]},
-        figures={"tests": tests, "base": base, "final": final, "floors": floors},
+        figures={"tests": tests, "base": base, "final": final, "floors": floors, "views": side_figures},
         rms_unit=rms_unit,
         shrink_basis=shrink_basis,
         notes=notes,

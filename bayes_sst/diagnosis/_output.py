@@ -43,7 +43,8 @@ def format_diagnosis(data: dict) -> str:
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
-        view = "  (stroke view: 8f, |v| >= 35 % of peak)" if r.get("view") == "stroke" else ""
+        view = {"stroke": "  (stroke view: 8f, |v| >= 35 % of peak)",
+                "reversal": "  (reversal view: every sample, reversals included)"}.get(r.get("view"), "")
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}")
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
@@ -89,8 +90,20 @@ def figures(diagnosis) -> list[tuple[str, str]]:
         ax.set_xlabel("cycle phase")
         ax.set_ylabel("residual (kN)")
         out.append(("Residual force against cycle phase: base model (blue)"
-                    + (", with the selected effect(s) (red)" if data["selected"] else ""), _png(fig)))
+                    + (", with the selected effect(s) (red)" if data["selected"] else "")
+                    + "; samples slower than 10 % of the peak speed are outside the likelihood", _png(fig)))
         plt.close(fig)
+        reversal = figs.get("views", {}).get("reversal")
+        if reversal:
+            fig, ax = plt.subplots(figsize=(6, 3))
+            for t, r in zip(reversal["tests"], reversal["base"].residuals):
+                phase = (t.kept / t.period_samples) % 1.0
+                ax.plot(phase, r / 1e3, ".", color="C1", ms=2, alpha=0.5)
+            ax.set_xlabel("cycle phase")
+            ax.set_ylabel("residual (kN)")
+            out.append(("Residual force against cycle phase over every sample, reversals included "
+                        "(the reversal view, where stiction is scored: its own base model)", _png(fig)))
+            plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3))
     where = data["where"][:8]
