@@ -1,7 +1,9 @@
 """diagnose(): where the base model misses a series, which effect is responsible, how far it shrinks.
 
-1. Base model (bayes_sst.diagnosis._engine) fitted to every sample of every periodic test's
-   steady window; its residuals r at the kept samples.
+1. Base model (bayes_sst.diagnosis._engine) fitted to the steady window of every periodic
+   test, treated as the fit treats it (bayes_sst.diagnosis._data.DIAGNOSIS_SIGNALS: the
+   reversal band left out, force and regressors weighted before the low-pass); its
+   residuals r at the kept samples.
 2. Noise floor, model-free: the deterministic response of a periodic test repeats every
    period T, the noise does not, so for each test floor_j^2 = mean((e(t+T) - e(t))^2)/2 with
    e the base residual at the full rate (any model error is periodic and cancels).
@@ -25,8 +27,10 @@
    f = min(floor, rms_after) (see _shrink), and the relative shift of the base parameters.
 Effects that grow with |u| (STROKE_EFFECTS) are scored the same way on the stroke view
 (bayes_sst.diagnosis._data.STROKE_SIGNALS: cut-off 8f, samples slower than 35 % of the peak
-speed left out) against that view's own base model: in the default view the table's rest at
-each reversal, where |u| is largest, projects onto their columns.
+speed left out) against that view's own base model: in a view with the reversal samples the
+table's rest at each reversal, where |u| is largest, projects onto their columns. Stiction
+(REVERSAL_EFFECTS), which lives inside the reversal band, is scored on the reversal view
+(REVERSAL_SIGNALS: every sample, no weight) against that view's own base model.
 Broadband tests add the oil_column check (bayes_sst.diagnosis._oil), scored on their
 command-to-motion frequency response; when it is the only effect selected, noise_floor,
 rms_before, rms_after and shrink are those of the frequency-response misfit (dimensionless).
