@@ -391,6 +391,10 @@ def test_withheld_effect_is_found_and_recovered(name, overrides, params, check_s
     d = diagnose(series)
     assert d.ranking[0]["name"] == name
     assert d.selected == [name]
+    # a side view's finding is in the model the default view's effects are scored against
+    from bayes_sst.diagnosis._diagnose import STROKE_EFFECTS
+
+    assert d.steps[0]["given"] == ([name] if name in STROKE_EFFECTS else [])
     if check_shrink:
         assert d.shrink >= 0.7
     for key, true in params.items():
