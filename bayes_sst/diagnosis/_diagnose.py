@@ -459,9 +459,10 @@ def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
 
 
 def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions, view: str, say,
-               timings) -> dict[str, Any]:
+               timings) -> tuple[dict[str, Any], list, dict[str, Any]]:
     """Score `effects` on another view of the series (STROKE_SIGNALS or REVERSAL_SIGNALS), against
-    that view's own base model."""
+    that view's own base model. Returns the view's summary (for diagnosis.json), the selected
+    (effect, setting) terms, and the view's tests and base model (for the page's figures)."""
     tests = effect_data(series, options)
     stroke = max(float(np.max(np.abs(t.u))) for t in tests)
     scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
@@ -473,17 +474,16 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
         entry["view"] = view
     rms_before, rms_after = _rms(base.residuals), _rms(final.residuals)
     b, f = base.base(), final.base()
-    return {
+    summary = {
         "selected": [s.effect.name for s in selected], "ranking": ranking, "steps": steps,
-        "_terms": [(s.effect, s.setting) for s in selected],  # for the default view's model
         "noise_floor": floor, "rms_before": rms_before, "rms_after": rms_after,
         "shrink": _shrink(rms_before, rms_after, floor) if selected else 0.0,
         "base_shift": _relative_shift(b, f),
         "base": dict(b, spread=base.spread), "final": dict(f, spread=final.spread),
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
         "reversal_window": options.reversal_window,
-        "_figures": {"tests": tests, "base": base},  # for the page, not the json
     }
+    return summary, [(s.effect, s.setting) for s in selected], {"tests": tests, "base": base}
 
 
 def _broadband_only(series: Series, started: float) -> Diagnosis:
@@ -563,12 +563,12 @@ def diagnose(
         if not view_effects:
             continue
         t0 = time.perf_counter()
-        side = side_views[view] = _side_view(series, view_effects, options, view, say, timings)
+        side, terms, side_figures[view] = _side_view(series, view_effects, options, view, say, timings)
+        side_views[view] = side
         timings[f"{view}_view"] = time.perf_counter() - t0
         side_ranking += side.pop("ranking")
         side_steps += side.pop("steps")
-        side_figures[view] = side.pop("_figures")
-        given += side.pop("_terms")
+        given += terms
 
     start = base
     if given:

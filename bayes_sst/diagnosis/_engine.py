@@ -194,13 +194,13 @@ def _noise_moments(payload: float, columns: Mapping[int, np.ndarray], p: int, ph
     """C (p+1, p+1): E[zw_n zw_n'], what the accelerometer's noise adds to the whitened moments
     W of z = (y, X) in the scaled units, from its Monte Carlo draws through each column that reads
     the acceleration (Scorer.noise); y = F - m_payload*a carries -m_payload times the a column's."""
-    first = next(iter(columns.values()))
-    zn = np.zeros((first.shape[0], p + 1, first.shape[1]))
-    for index, draws in columns.items():
-        zn[:, index + 1] = draws / col_scale[index]
-    zn[:, 0] = -payload * columns[0] / y_scale
+    rows = [0] + [index + 1 for index in columns]  # y, then the columns the noise reaches
+    zn = np.stack([-payload * columns[0] / y_scale] + [draws / col_scale[index] for index, draws in columns.items()],
+                  axis=1)
     whitened = zn[:, :, 1:] - phi * zn[:, :, :-1]
-    return np.einsum("kit,kjt->ij", whitened, whitened) / len(zn)
+    C = np.zeros((p + 1, p + 1))
+    C[np.ix_(rows, rows)] = np.einsum("kit,kjt->ij", whitened, whitened) / len(zn)
+    return C
 
 
 def _schur_last(W: np.ndarray, k: int) -> float:

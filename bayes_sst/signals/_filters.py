@@ -15,16 +15,21 @@ def _butterworth(order: int, relative_cutoff: float) -> np.ndarray:
     return _sp_signal.butter(order, relative_cutoff, btype="low", output="sos")
 
 
-def lowpass_sos(cutoff_hz: float, sample_rate_hz: float, order: int = BUTTERWORTH_ORDER):
-    """Second-order sections of a Butterworth low-pass; the cut-off must lie below Nyquist.
-    (Designs are cached: a series filters each test's regressors hundreds of times.)"""
+def _relative_cutoff(cutoff_hz: float, sample_rate_hz: float) -> float:
+    """cutoff/Nyquist; the cut-off must lie between 0 and the Nyquist frequency."""
     nyquist = 0.5 * sample_rate_hz
     if not 0.0 < cutoff_hz < nyquist:
         raise ValueError(
             f"low-pass cut-off {cutoff_hz:.4g} Hz must lie between 0 and the Nyquist "
             f"frequency {nyquist:.4g} Hz"
         )
-    return _butterworth(int(order), float(cutoff_hz / nyquist)).copy()  # the cached one stays intact
+    return float(cutoff_hz / nyquist)
+
+
+def lowpass_sos(cutoff_hz: float, sample_rate_hz: float, order: int = BUTTERWORTH_ORDER):
+    """Second-order sections of a Butterworth low-pass; the cut-off must lie below Nyquist.
+    (Designs are cached: a series filters each test's regressors hundreds of times.)"""
+    return _butterworth(int(order), _relative_cutoff(cutoff_hz, sample_rate_hz)).copy()  # the cached one stays intact
 
 
 @lru_cache(maxsize=256)
@@ -47,9 +52,8 @@ def zero_phase_lowpass(x, cutoff_hz: float, sample_rate_hz: float, *, axis: int 
     diagnosis filters tens of thousands of regressors and the solve was 40 % of the cost.
     """
     x = np.asarray(x, dtype=float)
-    lowpass_sos(cutoff_hz, sample_rate_hz)  # checks the cut-off
-    key = (BUTTERWORTH_ORDER, float(cutoff_hz / (0.5 * sample_rate_hz)))
-    sos = _butterworth(*key)
+    key = (BUTTERWORTH_ORDER, _relative_cutoff(cutoff_hz, sample_rate_hz))
+    sos = _butterworth(*key)  # the cached design, only read here
     edge = 3 * (2 * len(sos) + 1)
     moved = np.moveaxis(x, axis, -1)
     if moved.shape[-1] <= edge:
