@@ -39,6 +39,10 @@ CASES = [
     ("hinge-friction-1.5e5", "position_friction", {"position_friction": 1.5e5}, {"position_friction": 1.5e5}),
     ("stiction-1.3", "stiction", {"static_ratio": 1.3}, {"static_ratio": 1.3}),
     ("stiction-1.5", "stiction", {"static_ratio": 1.5}, {"static_ratio": 1.5}),
+    # the two above keep the twin's default Stribeck velocity, 5 mm/s: the friction peak lasts
+    # less than one 5 ms sample at most reversals; hydraulic seals reach 10-20 mm/s
+    ("stiction-1.3-10mm/s", "stiction", {"static_ratio": 1.3, "stribeck_velocity": 0.01}, {"static_ratio": 1.3}),
+    ("stiction-1.2-20mm/s (weak)", "stiction", {"static_ratio": 1.2, "stribeck_velocity": 0.02}, {"static_ratio": 1.2}),
     ("random-1", None, "random", {}),
     ("random-2", None, "random", {}),
 ]

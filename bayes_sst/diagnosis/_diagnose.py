@@ -30,7 +30,8 @@ Effects that grow with |u| (STROKE_EFFECTS) are scored the same way on the strok
 speed left out) against that view's own base model: in a view with the reversal samples the
 table's rest at each reversal, where |u| is largest, projects onto their columns. Stiction
 (REVERSAL_EFFECTS), which lives inside the reversal band, is scored on the reversal view
-(REVERSAL_SIGNALS: every sample, no weight) against that view's own base model. The side
+(REVERSAL_SIGNALS: cut-off 12f, only the samples slower than 2 % of the peak speed weighted
+out, where v crosses zero) against that view's own base model. The side
 views are screened first; the effects they select enter the default view's model before its
 own effects are screened.
 Broadband tests add the oil_column check (bayes_sst.diagnosis._oil), scored on their
@@ -89,7 +90,7 @@ REVERSAL_SHARE = 0.2
 # effects that grow with |u|, scored on the stroke view (bayes_sst.diagnosis._data.STROKE_SIGNALS)
 STROKE_EFFECTS = ("nonlinear_stiffness", "position_friction", "strut_inertia")
 # effects that live inside the reversal band, scored on the reversal view
-# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: every sample, no reversal window)
+# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: 12f, only |v| < 2 % of the peak speed weighted out)
 REVERSAL_EFFECTS = ("stiction",)
 
 

@@ -44,7 +44,7 @@ def format_diagnosis(data: dict) -> str:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
         view = {"stroke": "  (stroke view: 8f, |v| >= 35 % of peak)",
-                "reversal": "  (reversal view: every sample, reversals included)"}.get(r.get("view"), "")
+                "reversal": "  (reversal view: 12f, all but |v| < 2 % of peak)"}.get(r.get("view"), "")
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}")
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
@@ -101,8 +101,9 @@ def figures(diagnosis) -> list[tuple[str, str]]:
                 ax.plot(phase, r / 1e3, ".", color="C1", ms=2, alpha=0.5)
             ax.set_xlabel("cycle phase")
             ax.set_ylabel("residual (kN)")
-            out.append(("Residual force against cycle phase over every sample, reversals included "
-                        "(the reversal view, where stiction is scored: its own base model)", _png(fig)))
+            out.append(("Residual force against cycle phase with the reversals included (the reversal "
+                        "view, where stiction is scored: 12f, only |v| < 2 % of the peak speed left out; "
+                        "its own base model)", _png(fig)))
             plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3))

@@ -103,8 +103,11 @@ class Stiction(Effect):
 
         F_st = (Fs - Fk)*exp(-(|v|/v_s)^2)*sign(v),   static_ratio = Fs/Fk = 1 + (Fs - Fk)/Fmu.
 
-    The regressor filter(exp(-(|v|/v_s)^2) sign v) needs the samples near velocity reversals,
-    which the diagnosis keeps. Prior: Fs - Fk ~ N(0, Fmu^2); v_s log-uniform on its grid.
+    The regressor filter(exp(-(|v|/v_s)^2) sign v) needs the samples near velocity reversals
+    and a band wide enough to keep the peak narrow: the diagnosis scores it on its reversal view
+    (12f; only the samples in which v crosses zero weighted out). Prior: Fs - Fk ~ N(0, Fmu^2);
+    v_s log-uniform on its grid. At 200 Hz a peak narrower than one sample (v_s = 5 mm/s on a
+    fast test) is at the edge of what the data show.
     """
 
     name: str = "stiction"
