@@ -14,3 +14,13 @@ def signal_overrides(items: list[str]) -> dict:
         word = value.strip().lower()
         overrides[name] = words[word] if word in words else float(value)
     return overrides
+
+
+def without_motion_sensors(series):
+    """The series with its `a` and `v` columns removed, as a lab without an accelerometer records it."""
+    from dataclasses import replace
+
+    from bayes_sst.io import TestRecord
+
+    return replace(series, tests=tuple(
+        TestRecord(r.spec, {k: v for k, v in r.columns.items() if k not in ("a", "v")}) for r in series.tests))

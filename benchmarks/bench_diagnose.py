@@ -2,7 +2,7 @@
 withheld-effect study (is the withheld effect ranked first and selected, how much of the excess
 does it remove, how close are its parameters), plus clean series that must give `selected == []`.
 
-    .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--out results.json]
+    .venv/bin/python benchmarks/bench_diagnose.py [--quick] [--without-acceleration] [--out results.json]
 
 Prints one line per series; --quick runs only the timing and two cases.
 """
@@ -16,6 +16,8 @@ import time
 from bayes_sst.diagnosis import diagnose
 from bayes_sst.physics import strut_cubic_stiffness
 from bayes_sst.twin import PRESETS, random_series, simulate
+
+from _options import without_motion_sensors
 
 TRUTH = PRESETS["sst-paper"]
 K3 = strut_cubic_stiffness(TRUTH.Ke, TRUTH.strut_gamma, TRUTH.strut_h, TRUTH.strut_l0)
@@ -48,11 +50,13 @@ CASES = [
 ]
 
 
-def run_case(label, expected, overrides, params, seed):
+def run_case(label, expected, overrides, params, seed, without_acceleration=False):
     if overrides == "random":
         series = random_series(seed)   # an independent-lab-like clean table
     else:
         series = simulate("sst-paper", seed=seed, spread=0.02, truth_overrides=overrides)
+    if without_acceleration:
+        series = without_motion_sensors(series)
     started = time.perf_counter()
     d = diagnose(series)
     seconds = time.perf_counter() - started
@@ -77,12 +81,14 @@ def main():
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--seed", type=int, default=21)
     parser.add_argument("--out", default=None)
+    parser.add_argument("--without-acceleration", action="store_true",
+                        help="remove the a (and v) columns before diagnosing")
     args = parser.parse_args()
     cases = CASES[:1] + CASES[3:4] if args.quick else CASES
     rows = []
     for label, expected, overrides, params in cases:
         seed = int(label.split("-")[1]) if label.startswith(("clean-", "random-")) else args.seed
-        rows.append(run_case(label, expected, overrides, params, seed))
+        rows.append(run_case(label, expected, overrides, params, seed, args.without_acceleration))
     print(f"{sum(r['ok'] for r in rows)}/{len(rows)} as expected; slowest diagnosis "
           f"{max(r['seconds'] for r in rows):.1f} s")
     if args.out:

@@ -47,8 +47,11 @@ def main():
     parser.add_argument("--dir", default="/tmp/bayes_sst_independent_effects")
     parser.add_argument("--cases", nargs="*", default=None, help="labels to run (default: all)")
     parser.add_argument("--out", default=None)
+    parser.add_argument("--without-acceleration", action="store_true",
+                        help="remove the a (and v) columns before diagnosing")
     args = parser.parse_args()
     sys.path.insert(0, str(HERE))
+    from _options import without_motion_sensors
     from independent_generator import make_series
 
     from bayes_sst.diagnosis import diagnose
@@ -63,7 +66,10 @@ def main():
             if not os.path.exists(os.path.join(folder, "truth.json")):
                 make_series(seed, folder, effects=effects, sample_rate_hz=1000 if label.endswith("1kHz") else None)
             started = time.perf_counter()
-            result = diagnose(load_series(folder)).to_json()
+            series = load_series(folder)
+            if args.without_acceleration:
+                series = without_motion_sensors(series)
+            result = diagnose(series).to_json()
             seconds = time.perf_counter() - started
             selected = result["selected"]
             entries = {e["name"]: e for e in result["ranking"]}  # both views' effects

@@ -20,7 +20,8 @@ from scipy.ndimage import gaussian_filter1d
 
 from bayes_sst.effects import EffectData
 from bayes_sst.io import Series
-from bayes_sst.signals import SignalOptions, prepare_series, time_derivative, without_steady_offsets, zero_phase_lowpass
+from bayes_sst.signals import (SignalOptions, acceleration_from_velocity, prepare_series, time_derivative,
+                               without_steady_offsets, zero_phase_lowpass)
 
 # The default view treats the signals as the fit does: the reversal band (|v| < 10 % of the
 # peak speed) is left out and force and regressors are multiplied by the reversal weight before
@@ -106,10 +107,11 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             # twice at the recorded rate. The second derivative of the 4f-low-passed u (used
             # before) smears each reversal over 1/fc: on the clean twin without `a` it left
             # 453 N of residual against a 317 N floor and a spurious channel delay was selected;
-            # on an independent generator's series 1425 N against 239 N
-            width = SignalOptions().velocity_smoothing_s * fs
-            smoothed = gaussian_filter1d(np.asarray(record.u, dtype=float), width)
-            measured_a = time_derivative(time_derivative(smoothed, fs), fs)
+            # on an independent generator's series 1425 N against 239 N. The smoothing's and the
+            # differences' second-order error is taken out (signals.acceleration_from_velocity)
+            smoothing_s = SignalOptions().velocity_smoothing_s
+            smoothed = gaussian_filter1d(np.asarray(record.u, dtype=float), smoothing_s * fs)
+            measured_a = acceleration_from_velocity(time_derivative(smoothed, fs), fs, smoothing_s)
         a_raw = np.asarray(measured_a, dtype=float)
         if p.order is not None and last > first:
             position = (p.order - first) / (last - first)
@@ -152,6 +154,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             friction_load=p.friction_load,
             notes=p.notes,
             a_noise_full=a_noise,
+            acceleration_measured=p.acceleration_measured,
             **weighted,
         ))
     return out

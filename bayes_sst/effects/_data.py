@@ -66,6 +66,8 @@ class EffectData:
     u_model_full: np.ndarray | None = None
     a_model_full: np.ndarray | None = None
     F_raw: np.ndarray | None = None
+    # False: no usable accelerometer, a is derived from u (signals.acceleration_from_velocity)
+    acceleration_measured: bool = True
 
     @property
     def a_raw(self) -> np.ndarray:
