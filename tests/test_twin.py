@@ -260,6 +260,22 @@ def test_plans_beyond_the_tables_limits_are_refused():
         simulate(plan=PLAN, truth_overrides={"mass": 1.0})
 
 
+def test_an_unstable_servo_loop_is_refused_with_its_gains():
+    """The sst-paper gains with the data-format example's oil column (f_oil 8.5 Hz instead of
+    28.6 Hz) drive a 0.5 Hz, 80 mm sine unstable; the twin must say so instead of writing a
+    deck motion of 1e33 m. Retuned (kp 6 1/s, kdp 3e-10) the same test runs, and a 20-test
+    campaign of that table fits within its 90 % intervals (measured: Me +0.5 %, Ke +2.3 %)."""
+    import dataclasses
+
+    soft = dataclasses.replace(PRESETS["sst-paper"], bulk_modulus=1.4e9, piston_area=0.02, oil_volume=0.03)
+    plan = [{"kind": "sine", "frequency_hz": 0.5, "amplitude_m": 0.08}]
+    with pytest.raises(ValueError, match=r"test 'S01': the simulated servo loop is unstable.*kp = 20"):
+        simulate(soft, seed=3, plan=plan)
+    retuned = simulate(dataclasses.replace(soft, kp=6.0, kdp=3e-10), seed=3, plan=plan)
+    # a lower loop gain tracks less closely (73 mm of the 80 commanded), but stays bounded
+    assert np.max(np.abs(retuned.tests[0].u)) == pytest.approx(0.08, rel=0.15)
+
+
 def test_written_series_loads_back(tmp_path, quiet):
     from bayes_sst.io import load_series, write_series
 

@@ -153,6 +153,29 @@ def simulate_response(
     return {name: values[0] for name, values in out.items()}
 
 
+# the command stays inside the stroke (check_limits); a motion this far beyond it means the
+# simulated servo loop itself ran away
+DIVERGED_STROKE_MULTIPLE = 2.0
+
+
+def _check_servo_loop(test_id: str, u: np.ndarray, truth: TableTruth) -> None:
+    """Refuse a simulation whose deck motion left all bounds: an unstable servo loop.
+
+    Why: the loop's gains (kp, kdp) are set for the preset's oil column; with a much softer
+    column (a smaller bulk modulus or piston area, a larger oil volume) the same gains
+    destabilise it, and the integration grew to 1e33 m without complaint (a table with the
+    data-format document's example oil, f_oil 8.5 Hz, under the sst-paper gains).
+    """
+    peak = float(np.max(np.abs(u))) if np.all(np.isfinite(u)) else math.inf
+    if peak > DIVERGED_STROKE_MULTIPLE * truth.stroke:
+        raise ValueError(
+            f"test {test_id!r}: the simulated servo loop is unstable (the deck reached {peak:.3g} m "
+            f"against a stroke of +/-{truth.stroke:g} m). Its gains kp = {truth.kp:g} 1/s and "
+            f"kdp = {truth.kdp:g} m^3/(s*Pa) do not suit this oil column "
+            f"(closed-loop resonance {closed_loop_resonance_hz(truth, truth.Me):.3g} Hz): a valve-driven "
+            "actuator needs kp < 2*zeta_h*omega_h; lower kp or raise kdp")
+
+
 def _item_ids(items: list[PlanItem]) -> list[str]:
     ids = [item.id or f"{_ID_PREFIX[item.kind]}{i + 1:02d}" for i, item in enumerate(items)]
     if len(set(ids)) != len(ids):
@@ -263,6 +286,8 @@ def simulate(
         for column, values in out.items():
             for i, value in zip(lanes, values):
                 sim[column][i] = value
+    for i in range(len(items)):
+        _check_servo_loop(ids[i], sim["u"][i], truth)
 
     tests = []
     for i, item in enumerate(items):
