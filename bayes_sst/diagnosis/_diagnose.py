@@ -31,8 +31,8 @@ Effects that grow with |u| (STROKE_EFFECTS) are scored the same way on the strok
 speed left out) against that view's own base model: in a view with the reversal samples the
 table's rest at each reversal, where |u| is largest, projects onto their columns. Stiction
 (REVERSAL_EFFECTS), which lives inside the reversal band, is scored on the reversal view
-(REVERSAL_SIGNALS: cut-off 12f, only the samples slower than 2 % of the peak speed weighted
-out, where v crosses zero) against that view's own base model. The side
+(REVERSAL_SIGNALS: cut-off 12f, the reversal weight 0 below 2 % of the peak speed, where v
+crosses zero, rising to 1 at 12 %) against that view's own base model. The side
 views are screened first; the effects they select enter the default view's model before its
 own effects are screened, and when the default view selects effects each side view's selection
 is scored again with them in its model (a side effect no longer selectable is dropped).
@@ -100,7 +100,7 @@ BETWEEN_TESTS_Z = 4.0
 # effects that grow with |u|, scored on the stroke view (bayes_sst.diagnosis._data.STROKE_SIGNALS)
 STROKE_EFFECTS = ("nonlinear_stiffness", "position_friction", "strut_inertia")
 # effects that live inside the reversal band, scored on the reversal view
-# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: 12f, only |v| < 2 % of the peak speed weighted out)
+# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: 12f, weight 0 below 2 % of the peak speed, 1 above 12 %)
 REVERSAL_EFFECTS = ("stiction",)
 
 
@@ -318,7 +318,10 @@ def _between_test_share(before: ModelFit, after: ModelFit, names: Sequence[str],
         S = sum_k var_j(theta_jk/mu_k),   floor = sum_k mean_j((x_(j+1)k - x_jk)^2)/2,
         share = 1 - (S_after - f)/(S_before - f),   f = min(floor, S_after),
 
-    x the before-fit's values in campaign order (`positions`). Why: an effect that acts between
+    x the after-fit's values in campaign order (`positions`), pulled toward the population as
+    much as S_after's (the before-fit's values, pulled less, gave a floor above S_after on every
+    series, whatever the model). A model that leaves a trend behind keeps S_after above that
+    floor; one that explains nothing gets 0. Why: an effect that acts between
     tests (drift over the campaign) leaves each test's own fit, and so the within-test
     residual, unchanged (the per-test coefficients absorb it in-sample: its residual shrink is
     0 by construction); what it removes is the scatter of those coefficients from test to test.
@@ -341,7 +344,7 @@ def _between_test_share(before: ModelFit, after: ModelFit, names: Sequence[str],
     total = scatter(before)
     if len(before.theta) < 3 or total <= 0.0:
         return 0.0
-    floor = sum(float(np.mean(np.diff(relative(before, n)[order]) ** 2) / 2.0) for n in usable)
+    floor = sum(float(np.mean(np.diff(relative(after, n)[order]) ** 2) / 2.0) for n in usable)
     remaining = scatter(after)
     f = min(floor, remaining)
     if total <= f:
@@ -518,7 +521,7 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
         "reversal_window": options.reversal_window, "given": [e.name for e, _ in given],
     }
-    return summary, [(s.effect, s.setting) for s in selected], {"tests": tests, "base": base}
+    return summary, [(s.effect, s.setting) for s in selected], {"tests": tests, "base": base, "scorer": scorer}
 
 
 def _broadband_only(series: Series, started: float) -> Diagnosis:
@@ -592,6 +595,7 @@ def diagnose(
     side_ranking: list[dict[str, Any]] = []
     side_steps: list[dict[str, Any]] = []
     given: list = []
+    side_terms: dict[str, list] = {}
     default_view = signals == DIAGNOSIS_SIGNALS
     side_specs = (("stroke", stroke_effects, STROKE_SIGNALS if default_view else signals),
                   ("reversal", reversal_effects, REVERSAL_SIGNALS if default_view else signals))
@@ -601,6 +605,7 @@ def diagnose(
         t0 = time.perf_counter()
         side, terms, side_figures[view] = _side_view(series, view_effects, options, view, say, timings)
         side_views[view] = side
+        side_terms[view] = terms
         timings[f"{view}_view"] = time.perf_counter() - t0
         side_ranking += side.pop("ranking")
         side_steps += side.pop("steps")
@@ -612,6 +617,9 @@ def diagnose(
         start = fit_base(scorer, given)
     say(f"screening {len(main_effects)} candidate effects ...")
     selected, current, ranking, steps = _select(scorer, start, main_effects, floor, say, timings)
+    # the default view's candidates were scored with these side findings in the model
+    for step in steps:
+        step["given"] = [e.name for e, _ in given] + step["given"]
     if given and selected:
         # The other way round: a side view's finding must hold with the default view's findings
         # in its model. A specimen rings after every reversal, and without an accelerometer
@@ -624,29 +632,32 @@ def diagnose(
                 continue
             t0 = time.perf_counter()
             kept_effects = [e for e in view_effects if e.name in side["selected"]]
-            check, terms, _ = _side_view(series, kept_effects, options, view, say, timings, main_terms)
+            check, _, _ = _side_view(series, kept_effects, options, f"{view}_check", say, timings, main_terms)
             timings[f"{view}_view_check"] = time.perf_counter() - t0
             dropped = [name for name in side["selected"] if name not in check["selected"]]
             if dropped:
                 say(f"{', '.join(dropped)} no longer selected on the {view} view once "
                     f"{', '.join(e.name for e, _ in main_terms)} is in its model")
-                side["selected"] = check["selected"]
-                side["dropped_given_default_view"] = dropped
-                if not check["selected"]:
-                    side.update(rms_after=side["rms_before"], shrink=0.0, final=side["base"],
-                                base_shift=dict.fromkeys(side["base_shift"], 0.0))
-                side["check"] = {k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")}
+                # the view's own outcome, refitted with what it keeps
+                kept = [(e, st) for e, st in side_terms[view] if e.name not in dropped]
+                view_base = side_figures[view]["base"]
+                view_final = fit_base(side_figures[view]["scorer"], kept) if kept else view_base
+                rms_kept = _rms(view_final.residuals)
+                side.update(selected=[e.name for e, _ in kept], dropped_given_default_view=dropped,
+                            rms_after=rms_kept,
+                            shrink=_shrink(side["rms_before"], rms_kept, side["noise_floor"]) if kept else 0.0,
+                            final=dict(view_final.base(), spread=view_final.spread),
+                            base_shift=_relative_shift(view_base.base(), view_final.base()),
+                            check={k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")})
                 side_steps += check["steps"]
                 given = [(e, st) for e, st in given if e.name not in dropped]
+                start = fit_base(scorer, given) if given else base
                 current = fit_base(scorer, list(given) + main_terms)
-    if given:
-        for step in steps:
-            step["given"] = [e.name for e, _ in given] + step["given"]
     final = current
     rms_after = _rms(final.residuals)
     derived = [t.id for t in tests if not t.acceleration_measured]
-    reads_a = [s.effect.name for s in selected
-               if type(s.effect).acceleration_columns is not Effect.acceleration_columns]
+    reads_a = [e.name for e in [s.effect for s in selected] + [e for e, _ in given]
+               if type(e).acceleration_columns is not Effect.acceleration_columns]
     if derived and reads_a:
         # measured: without an accelerometer, clean series score a specimen at 2-40 nats, and 3
         # of 17 clean series (twin and an independent generator) had one selected (docs/diagnosis.md)

@@ -90,7 +90,9 @@ def smoothed_variance(sigma_samples: float) -> float:
 def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float, *, velocity_measured: bool = False):
     """The acceleration without an accelerometer, from the Gaussian-smoothed velocity v:
 
-        a0 = D(v),   a = a0 - k*D(D(a0)),   k = s^2/2 + h^2/3   (h^2/6 for a measured v),
+        a0 = D(v),   a = a0 - k*D(D(a0)),   k = s^2/2 + h^2/3,
+
+    (k = s^2/2 + h^2/6 when v was measured, so only one difference is taken),
 
     D the central difference (time_derivative), s^2 the variance of the smoothing kernel as
     sampled (smoothed_variance), h = 1/fs.

@@ -168,11 +168,15 @@ def _check_servo_loop(test_id: str, u: np.ndarray, truth: TableTruth) -> None:
     """
     peak = float(np.max(np.abs(u))) if np.all(np.isfinite(u)) else math.inf
     if peak > DIVERGED_STROKE_MULTIPLE * truth.stroke:
+        try:
+            resonance = f"{closed_loop_resonance_hz(truth, truth.Me):.3g} Hz"
+        except ValueError:
+            resonance = "not found"
         raise ValueError(
             f"test {test_id!r}: the simulated servo loop is unstable (the deck reached {peak:.3g} m "
             f"against a stroke of +/-{truth.stroke:g} m). Its gains kp = {truth.kp:g} 1/s and "
             f"kdp = {truth.kdp:g} m^3/(s*Pa) do not suit this oil column "
-            f"(closed-loop resonance {closed_loop_resonance_hz(truth, truth.Me):.3g} Hz): a valve-driven "
+            f"(closed-loop resonance {resonance}): a valve-driven "
             "actuator needs kp < 2*zeta_h*omega_h; lower kp or raise kdp")
 
 
