@@ -22,6 +22,7 @@ from bayes_sst.effects import EffectData
 from bayes_sst.io import Series
 from bayes_sst.signals import (SignalOptions, acceleration_from_velocity, prepare_series, time_derivative,
                                without_steady_offsets, zero_phase_lowpass)
+from bayes_sst.signals._noise import NOISE_DRAWS
 
 # The default view treats the signals as the fit does: the reversal band (|v| < 10 % of the
 # peak speed) is left out and force and regressors are multiplied by the reversal weight before
@@ -63,8 +64,6 @@ REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, rever
 STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_band_without_accelerometer=None,
                                reversal_window=False, periodic_acceleration=False)
 DEFAULT_STRUT_H = 1.0
-# Monte Carlo draws of the accelerometer's noise per test (EffectData.a_noise), as in the fit
-NOISE_DRAWS = 24
 
 
 def strut_height(series: Series) -> float:
@@ -118,8 +117,9 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         else:
             position = i / max(1, len(prepared) - 1)
         weighted = {}
-        force = zero_phase_lowpass(record.F, cutoff, fs)[lo:hi]
-        if p.weight_full is not None:
+        if p.weight_full is None:
+            force = zero_phase_lowpass(record.F, cutoff, fs)[lo:hi]
+        else:
             # the fit's reversal window (signals.reversal_weight): force and regressors are
             # multiplied by w before the low-pass, so the rest at each reversal stays out
             w = p.weight_full[lo:hi]

@@ -492,11 +492,11 @@ def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
 
 
 def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions, view: str, say,
-               timings, given: Sequence = ()) -> tuple[dict[str, Any], list, dict[str, Any]]:
+               timings, given: Sequence = ()) -> tuple[dict[str, Any], list, dict[str, Any], Scorer]:
     """Score `effects` on another view of the series (STROKE_SIGNALS or REVERSAL_SIGNALS), against
     that view's own base model (plus the `given` (effect, setting) terms). Returns the view's
-    summary (for diagnosis.json), the selected (effect, setting) terms, and the view's tests and
-    base model (for the page's figures)."""
+    summary (for diagnosis.json), the selected (effect, setting) terms, the view's tests and
+    base model (for the page's figures) and its scorer (to refit the view)."""
     tests = effect_data(series, options)
     stroke = max(float(np.max(np.abs(t.u))) for t in tests)
     scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
@@ -521,7 +521,7 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
         "reversal_window": options.reversal_window, "given": [e.name for e, _ in given],
     }
-    return summary, [(s.effect, s.setting) for s in selected], {"tests": tests, "base": base, "scorer": scorer}
+    return summary, [(s.effect, s.setting) for s in selected], {"tests": tests, "base": base}, scorer
 
 
 def _broadband_only(series: Series, started: float) -> Diagnosis:
@@ -596,6 +596,7 @@ def diagnose(
     side_steps: list[dict[str, Any]] = []
     given: list = []
     side_terms: dict[str, list] = {}
+    side_scorers: dict[str, Scorer] = {}  # kept out of the figures, which the Diagnosis holds
     default_view = signals == DIAGNOSIS_SIGNALS
     side_specs = (("stroke", stroke_effects, STROKE_SIGNALS if default_view else signals),
                   ("reversal", reversal_effects, REVERSAL_SIGNALS if default_view else signals))
@@ -603,7 +604,8 @@ def diagnose(
         if not view_effects:
             continue
         t0 = time.perf_counter()
-        side, terms, side_figures[view] = _side_view(series, view_effects, options, view, say, timings)
+        side, terms, side_figures[view], side_scorers[view] = _side_view(series, view_effects, options, view,
+                                                                          say, timings)
         side_views[view] = side
         side_terms[view] = terms
         timings[f"{view}_view"] = time.perf_counter() - t0
@@ -632,7 +634,7 @@ def diagnose(
                 continue
             t0 = time.perf_counter()
             kept_effects = [e for e in view_effects if e.name in side["selected"]]
-            check, _, _ = _side_view(series, kept_effects, options, f"{view}_check", say, timings, main_terms)
+            check, *_ = _side_view(series, kept_effects, options, f"{view}_check", say, timings, main_terms)
             timings[f"{view}_view_check"] = time.perf_counter() - t0
             dropped = [name for name in side["selected"] if name not in check["selected"]]
             if dropped:
@@ -641,7 +643,7 @@ def diagnose(
                 # the view's own outcome, refitted with what it keeps
                 kept = [(e, st) for e, st in side_terms[view] if e.name not in dropped]
                 view_base = side_figures[view]["base"]
-                view_final = fit_base(side_figures[view]["scorer"], kept) if kept else view_base
+                view_final = fit_base(side_scorers[view], kept) if kept else view_base
                 rms_kept = _rms(view_final.residuals)
                 side.update(selected=[e.name for e, _ in kept], dropped_given_default_view=dropped,
                             rms_after=rms_kept,

@@ -32,6 +32,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from bayes_sst.effects import Effect, EffectData
+from bayes_sst.signals._noise import NOISE_KEEP
 
 BASE_COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
 SPREAD_GRID = (0.001, 0.0025, 0.005, 0.01, 0.02, 0.035, 0.06, 0.1, 0.18)
@@ -46,9 +47,6 @@ INERTIA_STIFFNESS_SPREAD_GRID = tuple(g for g in SPREAD_GRID if g <= 0.06)
 FLAT_SD = 1e4          # prior sd of base coefficients, scaled units: flat in practice
 LOG_2PI = math.log(2.0 * math.pi)
 MAX_PHI = 0.98
-# the errors-in-variables correction leaves at least this share of the acceleration's
-# unexplained energy in place (as inference._statistics.NOISE_KEEP)
-NOISE_KEEP = 0.1
 
 Term = tuple[Effect, Mapping[str, float]]
 
@@ -203,13 +201,11 @@ def _noise_moments(payload: float, columns: Mapping[int, np.ndarray], p: int, ph
     return C
 
 
-def _schur_last(W: np.ndarray, k: int) -> float:
-    """The part of W[k, k] not explained by the other rows (W positive semi-definite)."""
-    others = [i for i in range(len(W)) if i != k]
-    Woo = W[np.ix_(others, others)]
-    Wok = W[others, k]
+def _unexplained_first(W: np.ndarray) -> float:
+    """W[0, 0] - W[0, r] W[r, r]^-1 W[r, 0]: the part of row 0's energy the other rows do not
+    explain (W positive semi-definite; 0 when they are singular)."""
     try:
-        return float(W[k, k] - Wok @ np.linalg.solve(Woo, Wok))
+        return float(W[0, 0] - W[0, 1:] @ np.linalg.solve(W[1:, 1:], W[1:, 0]))
     except np.linalg.LinAlgError:
         return 0.0
 
@@ -265,7 +261,7 @@ def _fit(ys, Xs, names, effect_prior, alpha, spread, terms, noise=None) -> Model
         C = moments[j]
         if C is None or C[1, 1] <= 0.0:
             continue
-        unexplained = _schur_last(W[j][1:, 1:], 0)
+        unexplained = _unexplained_first(W[j][1:, 1:])
         factor = float(np.clip((unexplained - NOISE_KEEP * C[1, 1]) / C[1, 1], 0.0, 1.0))
         # and the design's moments must stay positive definite with the same margin in every
         # direction the noise reaches (an effect column that reads a, too)

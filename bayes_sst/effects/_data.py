@@ -142,7 +142,8 @@ class EffectData:
 
     def force_at(self, shift_s: float) -> np.ndarray:
         """The modelled force read shift_s later, filter(w(t)*F(t + shift)) at the kept instants
-        (F(t + shift) by linear interpolation; without a weight, the filtered force interpolated)."""
+        (F(t + shift) by cubic spline through the raw force; without a weight, the filtered force
+        interpolated linearly)."""
         grid = np.arange(len(self.F_full))
         if self.weight_full is None or self.F_raw is None:
             return np.interp(self.kept + shift_s * self.sample_rate_hz, grid, self.F_full)

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayes_sst.signals import PreparedTest
+from bayes_sst.signals._noise import NOISE_DRAWS, NOISE_KEEP
 
 ALPHA_MIN = 0.05
 ALPHA_MAX = 1.95
@@ -161,12 +162,8 @@ def damping_cells(y: np.ndarray, X: np.ndarray, dX: np.ndarray, valid: np.ndarra
     return cross, gram
 
 
-# draws of the accelerometer noise through the signal treatment per test: the correction's own
-# Monte Carlo error is then about sqrt(2/(24 n)) of it, under 1 % for a hundred kept samples
-NOISE_DRAWS = 24
-# the correction leaves at least this share of the noise's energy in the direction of `a` that
-# the other regressors do not explain, and at least RESIDUAL_KEEP of the residual energy
-NOISE_KEEP = 0.1
+# NOISE_DRAWS, NOISE_KEEP: bayes_sst.signals._noise; the correction also leaves at least
+# RESIDUAL_KEEP of the residual energy
 RESIDUAL_KEEP = 0.5
 _CHECK_PHI = (-0.9, -0.5, 0.0, 0.5, 0.9)
 _CHECK_ALPHA = (0.3, 0.5, 0.8, 1.2)

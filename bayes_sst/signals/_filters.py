@@ -87,12 +87,10 @@ def smoothed_variance(sigma_samples: float) -> float:
     return float(np.sum(weights * k * k) / np.sum(weights))
 
 
-def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float, *, velocity_measured: bool = False):
-    """The acceleration without an accelerometer, from the Gaussian-smoothed velocity v:
+def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float):
+    """The acceleration without an accelerometer, from v = D(u smoothed by a Gaussian of sd s):
 
         a0 = D(v),   a = a0 - k*D(D(a0)),   k = s^2/2 + h^2/3,
-
-    (k = s^2/2 + h^2/6 when v was measured, so only one difference is taken),
 
     D the central difference (time_derivative), s^2 the variance of the smoothing kernel as
     sampled (smoothed_variance), h = 1/fs.
@@ -108,7 +106,7 @@ def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float, *, 
     """
     h = 1.0 / sample_rate_hz
     # the sampled, truncated kernel's own variance (0.86 s^2 at s = half a sample), not s^2
-    k = smoothed_variance(smoothing_s * sample_rate_hz) * h * h / 2.0 + h * h / (6.0 if velocity_measured else 3.0)
+    k = smoothed_variance(smoothing_s * sample_rate_hz) * h * h / 2.0 + h * h / 3.0
     a0 = time_derivative(v, sample_rate_hz)
     return a0 - k * time_derivative(time_derivative(a0, sample_rate_hz), sample_rate_hz)
 

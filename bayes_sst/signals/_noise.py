@@ -4,6 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+# The errors-in-variables correction for the accelerometer's noise (the fit's
+# inference._statistics.acceleration_noise_correction and the diagnosis's engine):
+# draws of the noise through the signal treatment per test; the correction's own Monte Carlo
+# error is then about sqrt(2/(24 n)) of it, under 1 % for a hundred kept samples
+NOISE_DRAWS = 24
+# the correction leaves at least this share of the noise's energy in the direction of `a` that
+# the other regressors do not explain
+NOISE_KEEP = 0.1
 # sd of a standard normal from the median absolute deviation
 MAD_TO_SD = 1.482602218505602
 MIN_SAMPLES = 50
