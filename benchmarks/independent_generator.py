@@ -129,10 +129,11 @@ def ar1(rng, n, fs, tc, sd):
     return x
 
 
-def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None):
+def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, population=None, spread=0.02):
     rng = np.random.default_rng(1000 + seed)
     pop = {k: REF[k] * rng.uniform(0.8, 1.2) for k in ("Me", "Ke", "Ce", "Fmu")}
     pop["alpha"] = rng.uniform(0.4, 0.8)
+    pop.update(population or {})  # after the draws, so the rest of the series does not change
     fs = int(rng.choice([200, 500]))
     fs = int(sample_rate_hz or fs)  # the draw stays, so the rest of the series does not change
     fs_ratio = rng.uniform(1.0, 1.1)
@@ -156,7 +157,7 @@ def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None):
         A = round(A, 4)
         n_in = int(rng.integers(1, 3)); n_steady = int(rng.integers(4, 9)); n_out = 1
         delta = rng.uniform(0.01, 0.03)
-        p = {k: pop[k] * (1 + 0.02 * rng.normal()) for k in ("Me", "Ke", "Ce", "Fmu")}
+        p = {k: pop[k] * (1 + spread * rng.normal()) for k in ("Me", "Ke", "Ce", "Fmu")}
         p["alpha"] = pop["alpha"]
         drift = (effects or {}).get("drift", 0.0) * j / (n_tests - 1)
         p["Ce"] *= 1 - drift

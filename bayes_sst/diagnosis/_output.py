@@ -13,6 +13,11 @@ DIAGNOSIS_JSON = "diagnosis.json"
 DIAGNOSIS_TEXT = "diagnosis.txt"
 DIAGNOSIS_HTML = "diagnosis.html"
 NEGLIGIBLE_EXCESS = 0.05
+# steps[].rule: by which rule of the selection an effect was taken (docs/diagnosis.md, Selection)
+RULE_WORDS = {"score_z": "score >= 2.5 se", "sign_test": "sign test over the tests",
+              "loss_scaled_z": "score against the scatter of the tests it makes worse",
+              "explains_most": "removes most of a clear excess",
+              "coefficient_z": "coefficient >= 4 sd from zero; its score is weak by construction"}
 
 
 def format_diagnosis(data: dict) -> str:
@@ -40,12 +45,14 @@ def format_diagnosis(data: dict) -> str:
     if data.get("notes"):
         lines += ["", "notes on the data:"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
+    rules = {step["chosen"]: step["rule"] for step in data.get("steps", []) if "chosen" in step}
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
         view = {"stroke": "  (stroke view: 8f, |v| >= 35 % of peak)",
                 "reversal": "  (reversal view: 12f, weight 0 below 2 % of peak speed, 1 above 12 %)"}.get(r.get("view"), "")
-        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}")
+        rule = f"  [selected: {RULE_WORDS.get(rules[r['name']], rules[r['name']])}]" if mark == "*" and r["name"] in rules else ""
+        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}")
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
                   + ", ".join(f"{k} {100 * v:+.1f} %" if v is not None else f"{k} n/a"
