@@ -66,8 +66,12 @@ def main():
 
     def series_at(name, seed, **kwargs):
         folder = os.path.join(args.dir, f"{name}-s{seed}")
-        if not os.path.exists(os.path.join(folder, "truth.json")):
+        made_with = os.path.join(folder, "regime.json")
+        wanted = json.dumps(kwargs, sort_keys=True)
+        # a folder made with other settings (or before this marker existed) is made afresh
+        if not (os.path.exists(made_with) and Path(made_with).read_text() == wanted):
             make_series(seed, folder, **kwargs)
+            Path(made_with).write_text(wanted)
         return folder
 
     rows = []
@@ -103,7 +107,7 @@ def main():
         row = {"case": name, "seed": seed, "expected": expected, "selected": d.selected, "top": top["name"],
                "top_score": top["score"], "top_score_se": top["score_se"], "shrink": d.shrink,
                "params": {k: v["mean"] for k, v in top["params"].items()},
-               "ok": d.selected[:1] == [expected], "diagnosis_seconds": time.perf_counter() - started}
+               "ok": d.selected == [expected], "diagnosis_seconds": time.perf_counter() - started}
         rows.append(row)
         print(f"{name:20s} s{seed}  selected={d.selected}  top {top['name']} {top['score']:.1f} +- "
               f"{top['score_se']:.1f}  {row['params']}  shrink {d.shrink:.2f}  {'OK' if row['ok'] else 'MISS'}",

@@ -68,8 +68,9 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
 
 
 def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best():
-    """3x the gas strut's K'e on the twin (seed 21): 8.2 +- 9.1 nats on the stroke view, under
-    MIN_SCORE, the coefficient 4.7 sds from zero (no series without a cubic went past 2.9).
+    """3x the gas strut's K'e on the twin (seed 21, prior sd Ke at the time): 8.1 +- 8.4 nats on
+    the stroke view, under MIN_SCORE, the coefficient 4.5 sds from zero (no series without a
+    cubic went past 2.9).
     Selected by COEFFICIENT_Z when it is the round's best candidate; not when a higher-scoring
     candidate exists (strut inertia is u^3 in shape within a sine), not below the z, not with a
     negative score, and the same numbers do not select the hinge, whose z reached 7.6 beside an
@@ -89,12 +90,11 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
                             amplitude_z=amplitude_z)
         return _selectable(s, _entry(s), best=best)
 
-    assert COEFFICIENT_Z == pytest.approx(4.0)
     assert by_name["nonlinear_stiffness"].z_selectable and by_name["drift"].z_selectable
     assert 0 < diff.sum() < 15.0  # under MIN_SCORE: no score rule selects it
-    assert selectable("nonlinear_stiffness", 4.5)
+    assert selectable("nonlinear_stiffness", 4.5) and selectable("nonlinear_stiffness", COEFFICIENT_Z)
     assert not selectable("nonlinear_stiffness", 4.5, best=False)
-    assert not selectable("nonlinear_stiffness", 2.9)
+    assert not selectable("nonlinear_stiffness", 0.99 * COEFFICIENT_Z)  # above MIN_AMPLITUDE_Z = 3
     assert not selectable("nonlinear_stiffness", 4.5, scale=-1.0)
     assert not selectable("position_friction", 4.5) and not selectable("strut_inertia", 4.5)
 
@@ -264,6 +264,11 @@ def test_text_output_says_what_the_shrink_is_a_share_of_and_survives_a_missing_s
     ruled = format_diagnosis(dict(data, steps=[{"given": [], "candidates": [], "chosen": "drift",
                                                  "rule": "coefficient_z"}]))
     assert "coefficient >= 4 sd from zero" in next(line for line in ruled.splitlines() if line.startswith(" * drift"))
+    # the rule that first took it, not a later check's; the run's thresholds
+    checked = format_diagnosis(dict(data, settings={"min_score": 12.0, "z_select": 2.5}, steps=[
+        {"given": [], "candidates": [], "chosen": "drift", "rule": "score_z"},
+        {"given": [], "candidates": [], "chosen": "drift", "rule": "coefficient_z", "view": "stroke_check"}]))
+    assert "score >= 12 nats and >= 2.5 se" in next(line for line in checked.splitlines() if line.startswith(" * drift"))
 
 
 def test_effect_data_leaves_out_an_acceleration_the_signals_refused():
@@ -469,7 +474,8 @@ WITHHELD = [
     pytest.param("drift", {"friction_drift": 0.05, "damping_drift": 0.05}, {"drift": 0.05}, True, id="drift-5%-weak"),
     # selected by its coefficient's z (score ~8 nats, under MIN_SCORE); K'e reads -13 % on this
     # seed, its posterior sd being 19 % (+21 % and +31 % on seeds 31 and 32: docs/diagnosis.md)
-    pytest.param("nonlinear_stiffness", {"cubic_stiffness": 3 * K3}, {"cubic_stiffness": 3 * K3}, True,
+    # (no shrink asserted: the stroke view's RMS is already under its floor, so it is 1 trivially)
+    pytest.param("nonlinear_stiffness", {"cubic_stiffness": 3 * K3}, {"cubic_stiffness": 3 * K3}, False,
                  id="cubic-3x"),
     # scored on the stroke view (8f, reversal band 35 %), where the rest-interval misfit is left out
     pytest.param("position_friction", {"position_friction": 1.5e5}, {"position_friction": 1.5e5}, True,
@@ -503,7 +509,7 @@ def test_withheld_effect_is_found_and_recovered(name, overrides, params, check_s
 @pytest.mark.slow
 def test_a_weak_cubic_is_found_by_its_coefficient_z_and_read_within_its_uncertainty():
     """3x the gas strut's K'e on the twin (seed 21): under every score rule (about 8 nats), its
-    coefficient about 4.5 sds from zero. Selected by the coefficient rule alone, with nothing
+    coefficient 4.7 sds from zero. Selected by the coefficient rule alone, with nothing
     beside it, and its K'e within 2 posterior sds of the truth."""
     series = simulate("sst-paper", seed=21, spread=0.02, truth_overrides={"cubic_stiffness": 3 * K3})
     d = diagnose(series)

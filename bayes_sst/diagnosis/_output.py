@@ -13,11 +13,17 @@ DIAGNOSIS_JSON = "diagnosis.json"
 DIAGNOSIS_TEXT = "diagnosis.txt"
 DIAGNOSIS_HTML = "diagnosis.html"
 NEGLIGIBLE_EXCESS = 0.05
-# steps[].rule: by which rule of the selection an effect was taken (docs/diagnosis.md, Selection)
-RULE_WORDS = {"score_z": "score >= 2.5 se", "sign_test": "sign test over the tests",
-              "loss_scaled_z": "score against the scatter of the tests it makes worse",
-              "explains_most": "removes most of a clear excess",
-              "coefficient_z": "coefficient >= 4 sd from zero; its score is weak by construction"}
+
+
+def rule_words(rule: str, settings: dict) -> str:
+    """steps[].rule in words (docs/diagnosis.md, Selection), with the run's thresholds."""
+    floor = f"score >= {settings.get('min_score', 15.0):g} nats and "
+    return {"score_z": floor + f">= {settings.get('z_select', 2.5):g} se",
+            "sign_test": floor + "a sign test over the tests",
+            "loss_scaled_z": floor + f">= {settings.get('z_loss', 5.0):g}x the scatter of the tests it makes worse",
+            "explains_most": floor + "removes most of a clear excess",
+            "coefficient_z": f"coefficient >= {settings.get('coefficient_z', 4.0):g} sd from zero, best of its "
+                             "round; its score is weak by construction"}.get(rule, rule)
 
 
 def format_diagnosis(data: dict) -> str:
@@ -45,13 +51,17 @@ def format_diagnosis(data: dict) -> str:
     if data.get("notes"):
         lines += ["", "notes on the data:"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
-    rules = {step["chosen"]: step["rule"] for step in data.get("steps", []) if "chosen" in step}
+    rules: dict[str, str] = {}
+    for step in data.get("steps", []):
+        if "chosen" in step:  # the rule that first took it, not a later check's
+            rules.setdefault(step["chosen"], step["rule"])
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
         view = {"stroke": "  (stroke view: 8f, |v| >= 35 % of peak)",
                 "reversal": "  (reversal view: 12f, weight 0 below 2 % of peak speed, 1 above 12 %)"}.get(r.get("view"), "")
-        rule = f"  [selected: {RULE_WORDS.get(rules[r['name']], rules[r['name']])}]" if mark == "*" and r["name"] in rules else ""
+        rule = (f"  [selected: {rule_words(rules[r['name']], data.get('settings', {}))}]"
+                if mark == "*" and r["name"] in rules else "")
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}")
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
