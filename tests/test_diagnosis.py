@@ -129,6 +129,18 @@ def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected(
     assert not selected(31.9, 675.5, 600.0, 274.8)[0]  # removes a third of the excess only
 
 
+def test_verdict_says_when_the_residual_had_no_visible_excess(clean_diagnosis):
+    """The shrink is measured against min(floor, after), so an effect found while the residual
+    sits under its floor estimate reads "100 % of the excess removed"; the verdict says why."""
+    from dataclasses import replace
+
+    found = replace(clean_diagnosis, selected=["drift"], shrink=1.0, shrink_basis="residual",
+                    rms_before=505.0, rms_after=504.0, noise_floor=513.0)
+    assert "100 % of the excess removed (the residual was already under its noise-floor" in found.verdict
+    above = replace(found, rms_before=700.0, rms_after=515.0)
+    assert above.verdict.endswith("100 % of the excess removed")
+
+
 def test_amplitude_z_of_a_scored_effect_is_its_coefficient_over_its_sd(clean_diagnosis):
     """EffectScore.amplitude_z from the extended fit's own coefficient and sd (drift, one
     linear coefficient); an effect without one (the delay) passes the gate and reports None."""

@@ -166,6 +166,10 @@ class Diagnosis:
         before = f"{self.rms_before:.0f}" if self.rms_unit == "N" else f"{self.rms_before:.3g}"
         removed = (f"{100 * self.shrink:.0f} % of the excess removed" if self.shrink_basis == "residual" else
                    f"{100 * self.shrink:.0f} % of the test-to-test scatter of the per-test coefficients explained")
+        if self.shrink_basis == "residual" and self.rms_before <= self.noise_floor:
+            # the shrink's reference is min(floor, after) (_shrink), so it reads 100 % here
+            removed += (" (the residual was already under its noise-floor estimate: the effect is found by "
+                        "its predictive score and coefficient, not by a visible excess)")
         return (f"verdict: {' + '.join(parts)}; {what} {before} -> {self._amount(self.rms_after)} "
                 f"(noise floor {self._amount(self.noise_floor)}), {removed}")
 
