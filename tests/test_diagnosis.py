@@ -48,7 +48,7 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
     the same score with a resolved amplitude does."""
     from types import SimpleNamespace
 
-    from bayes_sst.diagnosis._diagnose import MIN_AMPLITUDE_Z, _entry, _selectable
+    from bayes_sst.diagnosis._diagnose import MIN_AMPLITUDE_Z, _entry, _selection_rule
     from bayes_sst.effects import FORCE_EFFECTS
 
     diff = np.array([7.7, 3.8, 0.5, -0.2, -0.1, 0.3, -0.6, -1.5, 10.4, -0.2,
@@ -64,7 +64,7 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
         s = score(amplitude_z)
         entry = _entry(s)
         assert entry["z_loss"] >= 5.0  # the rule that let the spurious specimen through
-        assert _selectable(s, entry) is selected, amplitude_z
+        assert (_selection_rule(s, entry) is not None) is selected, amplitude_z
 
 
 def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best():
@@ -77,7 +77,7 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
     unmodelled delay."""
     from types import SimpleNamespace
 
-    from bayes_sst.diagnosis._diagnose import COEFFICIENT_Z, _entry, _selectable
+    from bayes_sst.diagnosis._diagnose import COEFFICIENT_Z, _entry, _selection_rule
     from bayes_sst.effects import FORCE_EFFECTS
 
     by_name = {e.name: e for e in FORCE_EFFECTS}
@@ -88,7 +88,7 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
         s = SimpleNamespace(effect=by_name[name], score=float(scale * diff.sum()), score_se=8.4, params={},
                             fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=scale * diff,
                             amplitude_z=amplitude_z)
-        return _selectable(s, _entry(s), best=best)
+        return _selection_rule(s, _entry(s), best=best) is not None
 
     assert by_name["nonlinear_stiffness"].z_selectable and by_name["drift"].z_selectable
     assert 0 < diff.sum() < 15.0  # under MIN_SCORE: no score rule selects it
@@ -107,7 +107,7 @@ def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected(
     floor), or with a weakly resolved amplitude, are not."""
     from types import SimpleNamespace
 
-    from bayes_sst.diagnosis._diagnose import _entry, _selectable, _with_shrink
+    from bayes_sst.diagnosis._diagnose import _entry, _selection_rule, _with_shrink
     from bayes_sst.effects import FORCE_EFFECTS
 
     diff = np.array([0.3, 0.0, 0.4, 0.3, -0.0, 0.6, 0.6, -0.3, -0.3, -0.1,
@@ -118,7 +118,7 @@ def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected(
         s = SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=64.0, params={},
                             fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=diff, amplitude_z=amplitude_z)
         entry = _with_shrink(_entry(s), before, after, floor)
-        return _selectable(s, entry), entry
+        return _selection_rule(s, entry) is not None, entry
 
     chosen, entry = selected(31.9, 675.5, 300.0, 274.8)
     assert chosen and entry["explains_most"] and entry["shrink"] > 0.9

@@ -29,6 +29,8 @@ def test_library_names_equations_and_priors():
         assert len(effect.prior_sd(base)) == len(effect.coefficients)
         assert len(effect.settings()) == math.prod(len(v) for v in effect.grid.values())
     assert effect_by_name("drift").coefficients == ("drift",)
+    # the columns that read a (the specimen's base shear, the strut inertia's (u/h)^2*a)
+    assert {e.name for e in EFFECTS if e.reads_acceleration} == {"specimen", "strut_inertia"}
     with pytest.raises(ValueError, match="unknown effect 'wobble'"):
         effect_by_name("wobble")
 

@@ -465,10 +465,6 @@ def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False) -
     return None
 
 
-def _selectable(s: EffectScore, entry: dict[str, Any], best: bool = False) -> bool:
-    return _selection_rule(s, entry, best) is not None
-
-
 def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: float, say, timings,
             label: str = ""):
     """Greedy selection: score every effect against the current model, add the best selectable one,
@@ -689,8 +685,7 @@ def diagnose(
     final = current
     rms_after = _rms(final.residuals)
     derived = [t.id for t in tests if not t.acceleration_measured]
-    reads_a = [e.name for e in [s.effect for s in selected] + [e for e, _ in given]
-               if type(e).acceleration_columns is not Effect.acceleration_columns]
+    reads_a = [e.name for e in [s.effect for s in selected] + [e for e, _ in given] if e.reads_acceleration]
     if derived and reads_a:
         # measured: without an accelerometer, clean series score a specimen at 2-40 nats, and 3
         # of 17 clean series (twin and an independent generator) had one selected (docs/diagnosis.md)

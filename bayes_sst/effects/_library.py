@@ -75,6 +75,11 @@ class Effect:
         base: the base fit's population values (Me, Ke, Ce, Fmu), for effects scaled by them."""
         return np.zeros((0, len(test.index)))
 
+    @property
+    def reads_acceleration(self) -> bool:
+        """Whether the effect's columns read the acceleration (it gives acceleration_columns)."""
+        return type(self).acceleration_columns is not Effect.acceleration_columns
+
     def acceleration_columns(self, test: EffectData, setting: Mapping[str, float],
                              a: np.ndarray) -> np.ndarray | None:
         """(K, k, n_kept): the effect's columns with the recorded acceleration replaced by the
