@@ -34,6 +34,11 @@ CASES = [
     ("cubic-1e6", "nonlinear_stiffness", {"cubic_stiffness": 1e6}, {"cubic_stiffness": 1e6}),
     ("drift-20%", "drift", {"drift": 0.2}, {"drift": 0.2}),
     ("stiction-1.4", "stiction", {"static_ratio": 1.4}, {"static_ratio": 1.4}),
+    # a tall specimen's first mode among the test frequencies (the grid began at 2 Hz until
+    # 2026-11-26), and a delay beyond the old 12 ms end of the delay grid
+    ("specimen-2t-1.5Hz", "specimen", {"specimen_mass": 2000.0, "specimen_frequency": 1.5, "specimen_damping": 0.03},
+     {"specimen_mass": 2000.0, "specimen_frequency": 1.5}),
+    ("delay-20ms", "channel_delay", {"force_delay": 0.02}, {"delay": 0.02}),
     # recorded at 1000 Hz: the specimen shows in the triangle tests' harmonics
     ("specimen-2.5t-11Hz-1kHz", "specimen", {"specimen_mass": 2500.0, "specimen_frequency": 11.0},
      {"specimen_mass": 2500.0, "specimen_frequency": 11.0}),

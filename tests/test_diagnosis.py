@@ -57,7 +57,7 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
 
     def score(amplitude_z):
         return SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=15.2, params={},
-                               fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=diff, amplitude_z=amplitude_z)
+                               fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff, amplitude_z=amplitude_z)
 
     assert MIN_AMPLITUDE_Z == pytest.approx(3.0)
     for amplitude_z, selected in ((1192.0 / 1653.0, False), (2.0, False), (21.4, True)):
@@ -86,7 +86,7 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
 
     def selectable(name, amplitude_z, best=True, scale=1.0):
         s = SimpleNamespace(effect=by_name[name], score=float(scale * diff.sum()), score_se=8.4, params={},
-                            fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=scale * diff,
+                            fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=scale * diff,
                             amplitude_z=amplitude_z)
         return _selection_rule(s, _entry(s), best=best) is not None
 
@@ -116,7 +116,7 @@ def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected(
 
     def selected(amplitude_z, before, after, floor):
         s = SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=64.0, params={},
-                            fit=SimpleNamespace(alpha=0.5), at_bound=False, diff=diff, amplitude_z=amplitude_z)
+                            fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff, amplitude_z=amplitude_z)
         entry = _with_shrink(_entry(s), before, after, floor)
         return _selection_rule(s, entry) is not None, entry
 
@@ -467,6 +467,51 @@ def test_diagnose_command_finds_a_withheld_channel_delay(tmp_path, capsys):
     assert main(["diagnose", str(tmp_path / "series"), "--out", str(out)]) == 2
 
 
+@pytest.mark.parametrize("delay, edge", [(0.02, None), (0.06, "upper")])
+def test_a_long_delay_is_read_on_the_coarse_grid_and_one_beyond_it_is_flagged(delay, edge):
+    """Delays of 12-40 ms are searched in 0.5 ms steps (refined to 0.05 ms): 20 ms is read to
+    0.1 ms, alone (at the old 12 ms bound a 15 ms delay came back as 12 ms with a spurious
+    specimen beside it). 60 ms lies beyond the grid: the delay is still selected, at 40 ms, and
+    a note says the value is a bound."""
+    series = simulate("sst-paper", seed=12, spread=0.02, plan=SHORT_PLAN, truth_overrides={"force_delay": delay})
+    d = diagnose(series)
+    assert d.selected[0] == "channel_delay"
+    entry = next(r for r in d.ranking if r["name"] == "channel_delay")
+    edge_notes = [n for n in d.notes if "end of its searched range" in n]
+    if edge is None:
+        assert d.selected == ["channel_delay"]
+        assert entry["params"]["delay"]["mean"] == pytest.approx(delay, abs=1e-4)
+        assert entry["grid_edge"] == {} and edge_notes == []
+    else:
+        assert entry["grid_edge"] == {"delay": "upper"}
+        assert entry["params"]["delay"]["mean"] >= 0.0398
+        assert edge_notes and edge_notes[0].startswith("channel_delay: delay is at the upper end")
+        from bayes_sst.diagnosis._output import format_diagnosis
+
+        assert edge_notes[0] in format_diagnosis(d.to_json())
+
+
+def test_the_delay_grid_weights_keep_its_prior_uniform():
+    """The delay grid coarsens from 0.25 to 0.5 ms beyond 12 ms; each setting's weight is its
+    cell width, so the weights integrate a uniform prior over -10..40 ms."""
+    from bayes_sst.effects import effect_by_name
+
+    delay = effect_by_name("channel_delay")
+    values = np.array([s["delay"] for s in delay.settings()])
+    weights = np.array([delay.grid_weight(s) for s in delay.settings()])
+    assert values.min() == pytest.approx(-0.01) and values.max() == pytest.approx(0.04)
+    # an inner point's weight is the width between the midpoints to its neighbours (0.25 ms units)
+    cells = (values[2:] - values[:-2]) / 2
+    np.testing.assert_allclose(weights[1:-1], cells / 0.00025, rtol=1e-6)
+    assert weights[values < 0.0119].tolist() == [1.0] * int(np.sum(values < 0.0119))
+    assert np.sum(weights[1:-1] * 0.00025) + 0.00025 / 2 + 0.0005 / 2 == pytest.approx(0.05)
+    # the refinement spans the coarse step around the best setting either side
+    for d0 in (0.005, 0.02):
+        steps = np.array([s["delay"] for s in delay.refine({"delay": d0})]) - d0
+        step = 0.00025 if d0 <= 0.012 else 0.0005
+        assert steps.min() < -step / 2 and steps.max() > step / 2
+
+
 # --- withheld-effect study (slow): one effect switched on, the 20-test reference campaign --------
 
 K3 = strut_cubic_stiffness(TRUTH.Ke, TRUTH.strut_gamma, TRUTH.strut_h, TRUTH.strut_l0)
@@ -478,6 +523,9 @@ WITHHELD = [
                  {"specimen_mass": 3000.0, "specimen_frequency": 8.0}, True, id="specimen-3t-8Hz"),
     pytest.param("specimen", {"specimen_mass": 5000.0, "specimen_frequency": 12.0, "specimen_damping": 0.05},
                  {"specimen_mass": 5000.0, "specimen_frequency": 12.0}, True, id="specimen-5t-12Hz"),
+    # a tall specimen's first mode among the test frequencies (measured: 2.03 t at 1.49 Hz)
+    pytest.param("specimen", {"specimen_mass": 2000.0, "specimen_frequency": 1.5, "specimen_damping": 0.03},
+                 {"specimen_mass": 2000.0, "specimen_frequency": 1.5}, True, id="specimen-2t-1.5Hz"),
     # drift acts between tests: the per-test coefficients absorb it in-sample, so its shrink is
     # the share of their excess test-to-test scatter it explains (measured 1.00 for 15 % and 5 %,
     # the scatter left at its floor; residual shrink ~0)

@@ -430,7 +430,8 @@ def _entry(score: EffectScore) -> dict[str, Any]:
     return {"name": score.effect.name, "score": float(score.score), "score_se": float(score.score_se),
             "z": float(score.score / score.score_se) if score.score_se > 0 else None,
             "params": score.params, "equation": score.effect.equation,
-            "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound, "sign_p": sign_test(score.diff),
+            "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound,
+            "grid_edge": dict(score.grid_edge), "sign_p": sign_test(score.diff),
             "z_loss": loss_scaled_z(score.diff),
             # None for an effect without a linear coefficient (the delay): JSON has no infinity
             "amplitude_z": score.amplitude_z if math.isfinite(score.amplitude_z) else None,
@@ -509,6 +510,23 @@ def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: fl
         current = fit_base(scorer, list(current.terms) + [(chosen.effect, chosen.setting)])
         remaining = [e for e in remaining if e.name != chosen.effect.name]
     return selected, current, ranking, steps
+
+
+def _grid_edge_notes(steps: Sequence[dict[str, Any]], selected_names: Sequence[str]) -> list[str]:
+    """A note for each selected effect whose grid parameter was best at the end of its searched
+    range: its value there is a bound, and the truth may lie beyond it."""
+    notes = []
+    for step in steps:
+        name = step.get("chosen")
+        if name not in selected_names:
+            continue
+        entry = next(c for c in step["candidates"] if c["name"] == name)
+        for key, side in entry.get("grid_edge", {}).items():
+            note = (f"{name}: {key} is at the {side} end of its searched range "
+                    f"({entry['params'].get(key, {}).get('mean', float('nan')):.4g}); the true value may lie beyond it")
+            if note not in notes:
+                notes.append(note)
+    return notes
 
 
 def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
@@ -741,6 +759,7 @@ def diagnose(
                 floor, rms_before, rms_after, shrink = (oil["noise_floor"], oil["rms_before"],
                                                         oil["rms_after"], oil["shrink"])
                 rms_unit = "response"
+    notes += _grid_edge_notes(steps, selected_names)
     timings["total"] = time.perf_counter() - started
     return Diagnosis(
         series_name=series.name,

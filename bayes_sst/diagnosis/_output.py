@@ -49,7 +49,7 @@ def format_diagnosis(data: dict) -> str:
         lines.append(f"  {100 * w['share']:6.0f} %  {w['region']}{extra}  "
                      f"(mean square {100 * w['excess_ratio']:+.0f} % over its floor)")
     if data.get("notes"):
-        lines += ["", "notes on the data:"] + [f"  {note}" for note in data["notes"]]
+        lines += ["", "notes (on the data and the findings):"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
     rules: dict[str, str] = {}
     for step in data.get("steps", []):

@@ -36,6 +36,10 @@ class EffectScore:
     diff: np.ndarray
     grid_profile: list = field(default_factory=list)
     at_bound: bool = False
+    # grid parameters (of three or more values: a specimen's two dampings only seed its
+    # refinement) whose best coarse value is the first or last of the grid: the truth may lie
+    # beyond the searched range ({name: 'lower' | 'upper'})
+    grid_edge: dict = field(default_factory=dict)
     amplitude_z: float = float("inf")  # largest |coefficient|/sd of the effect's linear terms
 
     @property
@@ -69,6 +73,9 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     logm = np.array([lm for _, lm in profile])
     best_setting = profile[int(np.argmax(logm))][0]
     best_logm = float(np.max(logm))
+    grid_edge = {key: ("lower" if best_setting[key] <= min(values) else "upper")
+                 for key, values in effect.grid.items()
+                 if len(values) > 2 and best_setting[key] in (min(values), max(values))}
     for setting in effect.refine(best_setting):
         lm = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread).log_marginal
         if lm > best_logm:
@@ -86,7 +93,7 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     base.update({n: fit.coefficient(n) for n in ("Me", "Ke", "Ce", "Fmu")})
     params = effect.report(coef, coef_sd, best_setting, base)
     # grid parameters: mean and sd over the grid posterior
-    weights = np.exp(logm - logm.max())
+    weights = np.exp(logm - logm.max()) * np.array([effect.grid_weight(st) for st, _ in profile])
     weights /= weights.sum()
     for key in effect.grid:
         values = np.array([s[key] for s, _ in profile])
@@ -101,4 +108,4 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
         score, se, diff, fit = 0.0, 0.0, np.zeros_like(diff), current
     amplitude_z = float(np.max(np.abs(coef) / np.maximum(coef_sd, 1e-300))) if k else float("inf")
     return EffectScore(effect, best_setting, score, se, params, fit, diff,
-                       [(dict(s), float(lm)) for s, lm in profile], at_bound, amplitude_z)
+                       [(dict(s), float(lm)) for s, lm in profile], at_bound, grid_edge, amplitude_z)
