@@ -390,8 +390,17 @@ def test_effect_data_views(clean_diagnosis):
     reversal = effect_data(series, REVERSAL_SIGNALS)[0]
     assert reversal.cutoff_hz == pytest.approx(3 * test.cutoff_hz)
     assert reversal.weight_full is not None
-    assert np.all(reversal.weight_full[np.abs(reversal.v_full) < 0.02 * peak * 0.99] == 0.0)
-    assert np.abs(reversal.v).min() >= 0.02 * peak * 0.95
+    # the band and weight are set from the 10 ms kernel's velocity; the regressors read the
+    # velocity whose fast part comes from the accelerometer (signals.complementary_velocity)
+    from dataclasses import replace
+
+    from bayes_sst.signals import prepare_series
+
+    kernel_only = prepare_series(series, replace(REVERSAL_SIGNALS, velocity_with_accelerometer=False))[0]
+    v_kernel = kernel_only.velocity_full[reversal.lo:reversal.lo + len(reversal.v_full)]
+    assert np.all(reversal.weight_full[np.abs(v_kernel) < 0.02 * peak * 0.99] == 0.0)
+    assert np.abs(v_kernel[np.isin(np.arange(len(v_kernel)) + reversal.lo, reversal.index)]).min() >= 0.02 * peak * 0.95
+    assert 0.0005 < np.max(np.abs(reversal.v_full - v_kernel)) < 0.1 * peak
     assert np.mean(np.abs(reversal.v) < 0.2 * np.max(np.abs(reversal.v))) > 0.05
     # the stroke view (effects growing with |u|): cut-off 8f, samples slower than 35 % of the peak left out
     stroke = effect_data(series, STROKE_SIGNALS)

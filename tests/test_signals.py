@@ -756,3 +756,27 @@ def test_a_working_but_noisy_accelerometer_on_a_slow_small_test_is_kept():
     assert kept.acceleration_measured and kept.notes == ()
     refused = prepare_test(TestRecord(record.spec, dict(record.columns, a=-noisy_a)))
     assert not refused.acceleration_measured and len(refused.notes) == 1
+
+
+def test_complementary_velocity_keeps_the_corner_of_a_breakaway():
+    """A table at rest that breaks away at 3 m/s^2: a 10 ms Gaussian kernel reads the corner
+    0.4*a*s = 12 mm/s too fast (G preserves lines, not corners); with the kernel's band
+    replaced above by the integrated acceleration, the corner is back to within the
+    trapezoid's half-sample step (a*dt/2 = 1.5 mm/s at 1 kHz), and an accelerometer offset
+    (0.05 m/s^2, a line once integrated) changes nothing in the interior."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from bayes_sst.signals import complementary_velocity
+
+    fs, s, a0, t0 = 1000.0, 0.01, 3.0, 1.0
+    t = np.arange(0, 2.0, 1 / fs)
+    v_true = a0 * np.clip(t - t0, 0.0, None)
+    v_kernel = gaussian_filter1d(v_true, s * fs)
+    a = a0 * (t >= t0)
+    corner = np.abs(t - t0) <= 0.03
+    assert np.max(np.abs(v_kernel - v_true)[corner]) == pytest.approx(0.4 * a0 * s, rel=0.05)
+    v = complementary_velocity(v_kernel, a, fs, s)
+    assert np.max(np.abs(v - v_true)[corner]) < 0.75 * a0 / fs
+    inner = (t > 0.2) & (t < 1.8)
+    with_offset = complementary_velocity(v_kernel, a + 0.05, fs, s)
+    np.testing.assert_allclose(with_offset[inner], v[inner], atol=1e-9)

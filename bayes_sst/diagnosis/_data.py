@@ -51,9 +51,13 @@ DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.1, revers
 #   that sign(v) cannot describe; kept, it pulls the Stribeck column negative. Weighted out
 #   (before the filter, as in the default view), the clean twin's reversal residual fell to its
 #   floor (332 N, floor 344 N) and stiction 1.3 at 20 mm/s was found at 1.30 (score 389 +- 139).
-# The 10 ms velocity kernel keeps sign(v) from flipping with the displacement noise.
+# The 10 ms velocity kernel keeps sign(v) from flipping with the displacement noise; where an
+# accelerometer is recorded, the velocity above the kernel's band comes from its integral
+# (signals.complementary_velocity), because the kernel alone rounds each breakaway's corner by
+# about 0.4*a*10 ms, more than a Stribeck velocity of 5 mm/s (1.3 read as 1.7 on seed 21).
 REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, reversal_band_without_accelerometer=None,
-                                 reversal_window=True, velocity_smoothing_s=0.01, periodic_acceleration=False)
+                                 reversal_window=True, velocity_smoothing_s=0.01, periodic_acceleration=False,
+                                 velocity_with_accelerometer=True)
 # The stroke view, for effects that grow with |u| (nonlinear_stiffness, position_friction,
 # strut_inertia): a wider band and no samples slower than 35 % of the peak speed. Under a sine
 # |u| is largest exactly where the table reverses and rests; with the 4f low-pass the rest

@@ -122,7 +122,9 @@ class Stiction(Effect):
     The regressor filter(exp(-(|v|/v_s)^2) sign v) needs the samples near velocity reversals
     and a band wide enough to keep the peak narrow: the diagnosis scores it on its reversal view
     (12f; weight 0 below 2 % of the peak speed, where v crosses zero, rising to 1 at 12 %, so
-    the peak sits mostly under the ramp, weighted like the force). Prior: Fs - Fk ~ N(0, Fmu^2);
+    the peak sits mostly under the ramp, weighted like the force; v from the displacement under
+    a 10 ms kernel, with its part above the kernel's band from the integrated acceleration
+    where one is recorded, which keeps the breakaway's corner). Prior: Fs - Fk ~ N(0, Fmu^2);
     v_s log-uniform on its grid. At 200 Hz a peak narrower than one sample (v_s = 5 mm/s on a
     fast test) is at the edge of what the data show.
     """
