@@ -314,6 +314,9 @@ def test_stiction_is_found_on_the_reversal_view_and_its_ratio_recovered():
     assert top["name"] == "stiction" and top.get("view") == "reversal"
     assert top["params"]["static_ratio"]["mean"] == pytest.approx(1.4, rel=0.1)
     assert top["params"]["stribeck_velocity"]["mean"] == pytest.approx(0.02, rel=0.5)
+    # the ratio's sd includes how the reading moves over the Stribeck velocity's grid posterior
+    ratio = top["params"]["static_ratio"]
+    assert ratio["sd"] >= ratio["sd_given_grid"] > 0.0
     # the reversal view's residual falls to its floor once stiction is in
     assert d.reversal["rms_after"] < 1.05 * d.reversal["noise_floor"] < d.reversal["rms_before"]
 

@@ -67,9 +67,13 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     """Profile the effect's grid, refit at the best setting with alpha re-profiled, score by LOTO."""
     terms = list(current.terms)
     profile = []
+    k = len(effect.coefficients)
+    profile_coef = []  # the effect's coefficients (mean, sd) at each grid setting
     for setting in effect.settings():
         fit = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread)
         profile.append((setting, fit.log_marginal))
+        if k:
+            profile_coef.append((fit.mu[len(fit.mu) - k:], fit.mu_sd[len(fit.mu) - k:]))
     logm = np.array([lm for _, lm in profile])
     best_setting = profile[int(np.argmax(logm))][0]
     best_logm = float(np.max(logm))
@@ -86,7 +90,6 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     diff = fit.elpd - current.elpd
     score = float(diff.sum())
     se = float(np.sqrt(len(diff) * np.var(diff, ddof=1))) if len(diff) > 1 else float("inf")
-    k = len(effect.coefficients)
     coef = fit.mu[len(fit.mu) - k:] if k else np.zeros(0)
     coef_sd = fit.mu_sd[len(fit.mu) - k:] if k else np.zeros(0)
     base = dict(current.base(), **scorer.base_scale)
@@ -102,6 +105,20 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
         name = "delay" if key == "delay" else key
         if name in params:
             params[name] = {"mean": float(best_setting[key]), "sd": sd, "posterior_mean": mean}
+    if k and len(profile) > 1:
+        # a parameter read from the coefficients (a static ratio, a specimen's mass) is read at
+        # the best grid setting, and its sd there is conditional on that setting; where the
+        # grid posterior is spread, the reading moves with the setting (a Stribeck velocity of
+        # 4.5 or 5.6 mm/s gives a different ratio). Law of total variance: the conditional
+        # variance at the best setting plus the grid posterior's variance of the readings.
+        readings = [effect.report(c, c_sd, st, base) for (st, _), (c, c_sd) in zip(profile, profile_coef)]
+        for name, value in params.items():
+            if name in effect.grid or not all(name in r for r in readings):
+                continue
+            means = np.array([r[name]["mean"] for r in readings])
+            spread = float(weights @ (means - weights @ means) ** 2)
+            value["sd_given_grid"] = value["sd"]
+            value["sd"] = float(np.sqrt(value["sd"] ** 2 + max(spread, 0.0)))
     at_bound = any(coef[effect.coefficients.index(name)] < 0 for name in effect.positive)
     if at_bound:
         # the physical fit sits at the bound (coefficient 0): the base model itself
