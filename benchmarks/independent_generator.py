@@ -20,6 +20,7 @@ from its physics here, not from bayes_sst.twin:
   cubic_stiffness K3 (N/m): strut force Ke*u + K3*(u/h)^2*u, h = 1.2 m;
   hinge_friction Fp (N): kinetic (and static) friction level Fk + Fp*(u/h)^2;
   drift: Fmu and Ce of test j multiplied by 1 - drift*j/(n-1);
+  friction_drift: Fmu alone multiplied by 1 - friction_drift*j/(n-1) (not in the benchmark cases);
   static_ratio: Fs/Fk in place of the drawn 1.0-1.1 (stiction).
 
     python benchmarks/independent_generator.py OUT_DIR SEED [SEED ...]
@@ -162,6 +163,7 @@ def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, popula
         drift = (effects or {}).get("drift", 0.0) * j / (n_tests - 1)
         p["Ce"] *= 1 - drift
         p["Fmu"] *= 1 - drift
+        p["Fmu"] *= 1 - (effects or {}).get("friction_drift", 0.0) * j / (n_tests - 1)
         t, uc, vc, ac, steady = command(kind, f, A, n_in, n_steady, n_out, delta)
         FA, u, v, a = simulate_deck(t, uc, vc, ac, p, fs_ratio, nominal, effects)
         idx = np.arange(0, len(t), step)

@@ -655,3 +655,28 @@ def test_clean_randomised_tables_select_nothing(seed):
     from bayes_sst.twin import random_series
 
     assert diagnose(random_series(seed)).selected == []
+
+
+def test_coefficient_trends_read_which_coefficient_fell_over_the_campaign():
+    """Per-test values with friction falling 20 % over the campaign and damping flat, each with
+    2 % scatter: the trend of Fmu reads 0.2 and that of Ce 0, each within 3 of its sds, the sds
+    near the least-squares value 0.02*sqrt(12/J) for J evenly spread tests."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._diagnose import _coefficient_trends
+
+    rng = np.random.default_rng(3)
+    J = 40
+    s = np.linspace(0.0, 1.0, J)
+    mu = {"Me": 13200.0, "Ke": 7.2e5, "Ce": 2.96e4, "Fmu": 1.25e4}
+    names = ["Me", "Ke", "Ce", "Fmu"]
+    theta = np.column_stack([mu[n] * (1 + 0.02 * rng.standard_normal(J)) for n in names])
+    theta[:, 3] *= 1 - 0.2 * s
+    fit = SimpleNamespace(names=names, theta=theta, coefficient=lambda n: mu[n])
+    trends = _coefficient_trends(fit, ("Ce", "Fmu"), s)
+    assert set(trends) == {"Ce", "Fmu"}
+    assert abs(trends["Fmu"]["rate"] - 0.2) < 3 * trends["Fmu"]["sd"]
+    assert abs(trends["Ce"]["rate"]) < 3 * trends["Ce"]["sd"]
+    assert trends["Ce"]["sd"] == pytest.approx(0.02 * math.sqrt(12 / J), rel=0.35)
+    # three tests at least, spread over the campaign
+    assert _coefficient_trends(fit, ("Fmu",), np.zeros(J)) == {}

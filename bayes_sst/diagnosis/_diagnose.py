@@ -146,6 +146,9 @@ class Diagnosis:
     shrink_basis: str = "residual"
     # what the signal treatment set aside (a recorded acceleration it refused, ...)
     notes: list[str] = field(default_factory=list)
+    # when drift is selected: each base coefficient's fall over the campaign, read from the
+    # per-test values of the model without drift ({name: {rate, sd}}; _coefficient_trends)
+    trends: dict[str, dict[str, float]] = field(default_factory=dict)
     # arrays kept for the figures (not in the json)
     figures: dict[str, Any] = field(default_factory=dict, repr=False)
 
@@ -183,6 +186,7 @@ class Diagnosis:
             "rms_unit": self.rms_unit,
             "shrink_basis": self.shrink_basis,
             "notes": list(self.notes),
+            "coefficient_trends": self.trends,
             "noise_floor": self.noise_floor,
             "rms_before": self.rms_before,
             "rms_after": self.rms_after,
@@ -323,6 +327,38 @@ def _relative_shift(before: dict[str, float], after: dict[str, float]) -> dict[s
     """(after - before)/before per base parameter; None where the base value is exactly 0 (no
     information in the data), which has no relative change."""
     return {k: (float((after[k] - before[k]) / before[k]) if before[k] != 0 else None) for k in before}
+
+
+def _coefficient_trends(fit: ModelFit, names: Sequence[str], positions: Sequence[float]) -> dict[str, dict[str, float]]:
+    """Each coefficient's fall over the campaign, from the per-test values theta_j of `fit`:
+
+        theta_j/mu = c*(1 - rate*s_j) + e_j,   s_j in [0, 1] the campaign position,
+
+    by least squares (rate = -slope/c, its sd by the delta method from the slope's).
+    Why: the drift effect has one rate shared by friction and damping (two rates trade off
+    within a test), so a drift of friction alone (20 % on an independent generator's series)
+    reads as 0.10-0.13; the per-test values, which the base model fits test by test, tell
+    which coefficient moved. They are pulled toward the population by the fitted spread, and
+    a test's Ce and Fmu trade off, so the fall of one shows partly in the other; the sds, from
+    the scatter about the line, do not know of that trade-off. Measured: friction alone falling
+    20 % reads Fmu 0.19 +- 0.01 and 0.17 +- 0.02, Ce 0.04 and 0.02 +- 0.02 (independent
+    generator, seeds 0 and 1), Fmu 0.16 +- 0.02 and Ce 0.04 +- 0.02 on the twin (seed 21); both
+    falling 15 % on the twin read Fmu 0.18 +- 0.02 and Ce 0.12 +- 0.01.
+    """
+    s = np.asarray(positions, dtype=float)
+    if len(s) < 3 or np.ptp(s) <= 0.0:
+        return {}
+    design = np.column_stack([np.ones_like(s), s])
+    out = {}
+    for name in names:
+        if name not in fit.names or fit.coefficient(name) == 0:
+            continue
+        y = fit.theta[:, fit.names.index(name)] / fit.coefficient(name)
+        (c, slope), *_ = np.linalg.lstsq(design, y, rcond=None)
+        resid = y - design @ np.array([c, slope])
+        cov = np.linalg.inv(design.T @ design) * float(resid @ resid) / (len(s) - 2)
+        out[name] = {"rate": float(-slope / c), "sd": float(math.sqrt(cov[1, 1]) / abs(c))}
+    return out
 
 
 def _between_test_share(before: ModelFit, after: ModelFit, names: Sequence[str],
@@ -727,6 +763,8 @@ def diagnose(
         between = sorted({n for s in selected for n in s.effect.between_tests})
         shrink, shrink_basis = (_between_test_share(start, final, between, [t.position for t in tests]),
                                 "between_tests")
+    trends = (_coefficient_trends(start, ("Me", "Ke", "Ce", "Fmu"), [t.position for t in tests])
+              if "drift" in selected_names else {})
     ranking = sorted(ranking + side_ranking, key=lambda r: -r["score"])
     steps += side_steps
     for view in ("stroke", "reversal"):
@@ -787,4 +825,5 @@ def diagnose(
         rms_unit=rms_unit,
         shrink_basis=shrink_basis,
         notes=notes,
+        trends=trends,
     )

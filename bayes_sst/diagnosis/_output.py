@@ -48,6 +48,11 @@ def format_diagnosis(data: dict) -> str:
         extra = f", {100 * w['sample_share']:.0f} % of the samples" if w.get("sample_share") is not None else ""
         lines.append(f"  {100 * w['share']:6.0f} %  {w['region']}{extra}  "
                      f"(mean square {100 * w['excess_ratio']:+.0f} % over its floor)")
+    if data.get("coefficient_trends"):
+        lines += ["", "fall of each coefficient over the campaign (first to last test, from the per-test values "
+                  "of the model without drift):"]
+        lines.append("  " + ", ".join(f"{name} {100 * t['rate']:+.1f} +- {100 * t['sd']:.1f} %"
+                                      for name, t in data["coefficient_trends"].items()))
     if data.get("notes"):
         lines += ["", "notes (on the data and the findings):"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
