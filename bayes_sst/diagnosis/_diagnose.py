@@ -52,7 +52,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, REVERSAL_SIGNALS, STROKE_SIGNALS, effect_data
-from bayes_sst.diagnosis._engine import ModelFit, Scorer
+from bayes_sst.diagnosis._engine import BASE_COEFFICIENTS, ModelFit, Scorer
 from bayes_sst.diagnosis._oil import oil_column_check
 from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
 from bayes_sst.effects import FORCE_EFFECTS, Effect, EffectData
@@ -329,6 +329,11 @@ def _relative_shift(before: dict[str, float], after: dict[str, float]) -> dict[s
     return {k: (float((after[k] - before[k]) / before[k]) if before[k] != 0 else None) for k in before}
 
 
+def _relative_per_test(fit: ModelFit, name: str) -> np.ndarray:
+    """Each test's value of coefficient `name` over its population value."""
+    return fit.theta[:, fit.names.index(name)] / fit.coefficient(name)
+
+
 def _coefficient_trends(fit: ModelFit, names: Sequence[str], positions: Sequence[float]) -> dict[str, dict[str, float]]:
     """Each coefficient's fall over the campaign, from the per-test values theta_j of `fit`:
 
@@ -353,7 +358,7 @@ def _coefficient_trends(fit: ModelFit, names: Sequence[str], positions: Sequence
     for name in names:
         if name not in fit.names or fit.coefficient(name) == 0:
             continue
-        y = fit.theta[:, fit.names.index(name)] / fit.coefficient(name)
+        y = _relative_per_test(fit, name)
         (c, slope), *_ = np.linalg.lstsq(design, y, rcond=None)
         resid = y - design @ np.array([c, slope])
         cov = np.linalg.inv(design.T @ design) * float(resid @ resid) / (len(s) - 2)
@@ -386,16 +391,13 @@ def _between_test_share(before: ModelFit, after: ModelFit, names: Sequence[str],
     usable = [n for n in names if before.coefficient(n) != 0 and after.coefficient(n) != 0]
     order = np.argsort(np.asarray(positions, dtype=float), kind="stable")
 
-    def relative(fit: ModelFit, n: str) -> np.ndarray:
-        return fit.theta[:, fit.names.index(n)] / fit.coefficient(n)
-
     def scatter(fit: ModelFit) -> float:
-        return sum(float(np.var(relative(fit, n), ddof=1)) for n in usable)
+        return sum(float(np.var(_relative_per_test(fit, n), ddof=1)) for n in usable)
 
     total = scatter(before)
     if len(before.theta) < 3 or total <= 0.0:
         return 0.0
-    floor = sum(float(np.mean(np.diff(relative(after, n)[order]) ** 2) / 2.0) for n in usable)
+    floor = sum(float(np.mean(np.diff(_relative_per_test(after, n)[order]) ** 2) / 2.0) for n in usable)
     remaining = scatter(after)
     f = min(floor, remaining)
     if total <= f:
@@ -533,13 +535,12 @@ def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: fl
         if label:
             step["view"] = label.rstrip("_")
         steps.append(step)
-        rules = [_selection_rule(s, entry, best=rank == 0)
-                 for rank, (s, entry) in enumerate(zip(scores, step["candidates"]))]
-        chosen = next((s for s, rule in zip(scores, rules) if rule is not None), None)
+        chosen, rule = next(((s, rule) for rank, (s, entry) in enumerate(zip(scores, step["candidates"]))
+                             if (rule := _selection_rule(s, entry, best=rank == 0)) is not None), (None, None))
         if chosen is None:
             break
         step["chosen"] = chosen.effect.name
-        step["rule"] = next(rule for rule in rules if rule is not None)
+        step["rule"] = rule
         say(f"selected {chosen.effect.name} (score {chosen.score:.1f} +- {chosen.score_se:.1f}, rule {step['rule']})")
         selected.append(chosen)
         # the new current model, alpha profiled afresh over the whole range
@@ -757,14 +758,13 @@ def diagnose(
     final_values = final.base()
     base_shift = _relative_shift(base_values, final_values)
     selected_names = [s.effect.name for s in selected]
+    positions = [t.position for t in tests]
     shrink = _shrink(rms_before, rms_after, floor) if selected else 0.0
     shrink_basis = "residual"
     if selected and all(s.effect.between_tests for s in selected):
         between = sorted({n for s in selected for n in s.effect.between_tests})
-        shrink, shrink_basis = (_between_test_share(start, final, between, [t.position for t in tests]),
-                                "between_tests")
-    trends = (_coefficient_trends(start, ("Me", "Ke", "Ce", "Fmu"), [t.position for t in tests])
-              if "drift" in selected_names else {})
+        shrink, shrink_basis = _between_test_share(start, final, between, positions), "between_tests"
+    trends = _coefficient_trends(start, BASE_COEFFICIENTS, positions) if "drift" in selected_names else {}
     ranking = sorted(ranking + side_ranking, key=lambda r: -r["score"])
     steps += side_steps
     for view in ("stroke", "reversal"):

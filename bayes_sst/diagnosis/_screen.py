@@ -63,6 +63,12 @@ def fit_base(scorer: Scorer, terms: Sequence[Term] = (), alpha_start: float | No
     return fit
 
 
+def _effect_coefficients(fit: ModelFit, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Posterior mean and sd of the last k coefficients of fit (the effect's own, appended to
+    the base's)."""
+    return fit.mu[len(fit.mu) - k:], fit.mu_sd[len(fit.mu) - k:]
+
+
 def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectScore:
     """Profile the effect's grid, refit at the best setting with alpha re-profiled, score by LOTO."""
     terms = list(current.terms)
@@ -72,8 +78,7 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     for setting in effect.settings():
         fit = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread)
         profile.append((setting, fit.log_marginal))
-        if k:
-            profile_coef.append((fit.mu[len(fit.mu) - k:], fit.mu_sd[len(fit.mu) - k:]))
+        profile_coef.append(_effect_coefficients(fit, k))
     logm = np.array([lm for _, lm in profile])
     best_setting = profile[int(np.argmax(logm))][0]
     best_logm = float(np.max(logm))
@@ -90,8 +95,7 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     diff = fit.elpd - current.elpd
     score = float(diff.sum())
     se = float(np.sqrt(len(diff) * np.var(diff, ddof=1))) if len(diff) > 1 else float("inf")
-    coef = fit.mu[len(fit.mu) - k:] if k else np.zeros(0)
-    coef_sd = fit.mu_sd[len(fit.mu) - k:] if k else np.zeros(0)
+    coef, coef_sd = _effect_coefficients(fit, k)
     base = dict(current.base(), **scorer.base_scale)
     base.update({n: fit.coefficient(n) for n in ("Me", "Ke", "Ce", "Fmu")})
     params = effect.report(coef, coef_sd, best_setting, base)
@@ -102,9 +106,8 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
         values = np.array([s[key] for s, _ in profile])
         mean = float(weights @ values)
         sd = float(np.sqrt(max(weights @ (values - mean) ** 2, 0.0)))
-        name = "delay" if key == "delay" else key
-        if name in params:
-            params[name] = {"mean": float(best_setting[key]), "sd": sd, "posterior_mean": mean}
+        if key in params:
+            params[key] = {"mean": float(best_setting[key]), "sd": sd, "posterior_mean": mean}
     if k and len(profile) > 1:
         # a parameter read from the coefficients (a static ratio, a specimen's mass) is read at
         # the best grid setting, and its sd there is conditional on that setting; where the

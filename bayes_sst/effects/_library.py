@@ -314,19 +314,23 @@ class ChannelDelay(Effect):
     grid: Mapping[str, tuple[float, ...]] = field(default_factory=lambda: {"delay": tuple(np.round(
         np.concatenate([np.arange(-0.01, 0.01201, 0.00025), np.arange(0.0125, 0.04001, 0.0005)]), 6))})
 
-    def _spacing(self, delay: float) -> float:
-        return 0.00025 if delay <= 0.012 + 1e-9 else 0.0005
+    def _grid_index(self, delay: float) -> tuple[np.ndarray, int]:
+        values = np.asarray(self.grid["delay"])
+        return values, int(np.argmin(np.abs(values - delay)))
 
     def refine(self, setting):
+        # +-0.8 of the coarse step below the best value (above it, at the grid's first value)
         d0 = setting["delay"]
-        half = 0.8 * self._spacing(d0)
+        values, i = self._grid_index(d0)
+        half = 0.8 * (values[i] - values[i - 1] if i > 0 else values[1] - values[0])
         return [{"delay": float(np.round(d0 + step, 6))} for step in np.arange(-half, half + 1e-9, 0.00005)
                 if abs(step) > 1e-9]
 
     def grid_weight(self, setting):
-        # the cell between the midpoints to either neighbour, in 0.25 ms steps
-        d = setting["delay"]
-        return (self._spacing(d - 1e-6) + self._spacing(d + 1e-6)) / (2 * 0.00025)
+        # the cell between the midpoints to either neighbour (one-sided at the ends), in units of
+        # the finest step; rounded as the grid's values are, so that equal steps weigh exactly 1
+        values, i = self._grid_index(setting["delay"])
+        return float(np.round(np.gradient(values)[i] / np.min(np.diff(values)), 6))
 
     def response(self, test, setting):
         return test.force_at(setting["delay"])
