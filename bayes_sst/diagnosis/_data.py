@@ -22,7 +22,8 @@ from bayes_sst.effects import EffectData
 from bayes_sst.io import Series
 from bayes_sst.signals import (SignalOptions, acceleration_from_velocity, prepare_series, time_derivative,
                                without_steady_offsets, zero_phase_lowpass)
-from bayes_sst.signals._noise import NOISE_DRAWS
+from bayes_sst.signals._noise import NOISE_DRAWS, white_noise_sd
+from bayes_sst.signals._prepare import NOISE_SPEED_SHARE
 
 # The default view treats the signals as the fit does: the reversal band (|v| < 10 % of the
 # peak speed) is left out and force and regressors are multiplied by the reversal weight before
@@ -81,6 +82,50 @@ def strut_height(series: Series) -> float:
     return h if math.isfinite(h) and h > 0 else DEFAULT_STRUT_H
 
 
+def derived_acceleration(u, sample_rate_hz: float):
+    """The acceleration without an accelerometer: u smoothed as the fit's velocity is (2.5 ms
+    Gaussian) and differentiated twice at the recorded rate, its second-order error taken out
+    (signals.acceleration_from_velocity); along the last axis of u.
+
+    Why not the second derivative of the 4f-low-passed u (used before): it smears each
+    reversal over 1/fc; on the clean twin without `a` it left 453 N of residual against a 317 N
+    floor and a spurious channel delay was selected; on an independent generator's series
+    1425 N against 239 N.
+    """
+    smoothing_s = SignalOptions().velocity_smoothing_s
+    smoothed = gaussian_filter1d(np.asarray(u, dtype=float), smoothing_s * sample_rate_hz, axis=-1)
+    return acceleration_from_velocity(time_derivative(smoothed, sample_rate_hz), sample_rate_hz, smoothing_s)
+
+
+def derived_acceleration_noise(u, velocity, cutoff_hz: float, sample_rate_hz: float, lo: int, hi: int,
+                               rng: np.random.Generator) -> np.ndarray | None:
+    """(NOISE_DRAWS, hi - lo): the displacement sensor's white noise, read off u (white_noise_sd
+    of u less its low-pass, mid-stroke), drawn and carried through derived_acceleration, for
+    the errors-in-variables correction that a recorded a's noise gets (None without noise).
+
+    Why: twice differentiated, u's noise is a noise in the acceleration regressor that grows as
+    f^2, so it weighs most at the harmonics, where it is as large as the harmonics themselves
+    (an independent generator's clean 1 kHz series: u noise 20 um, the derived a's 3rd-9th
+    harmonics 3-25 % off the recorded a's). Unaccounted, it attenuates the mass coefficient
+    most at the harmonics, and a stiff specimen, whose base shear is m_s*(1 + (f/f_s)^2)*a
+    below its resonance, puts the lost mass back: without `a`, a 1.6-4.6 t specimen at 17-26 Hz
+    was selected on three of ten clean series of that generator.
+    """
+    u = np.asarray(u, dtype=float)
+    speed = np.abs(np.asarray(velocity, dtype=float)[lo:hi])
+    if speed.size == 0:
+        return None
+    above_band = (u - zero_phase_lowpass(u, cutoff_hz, sample_rate_hz))[lo:hi]
+    sd = white_noise_sd(above_band, where=speed >= NOISE_SPEED_SHARE * float(np.percentile(speed, 99.5)))
+    if not sd > 0.0:
+        return None
+    # the smoothing kernel's reach (4 sds) and the differences' few samples, so every kept
+    # sample sees noise on both sides as a recorded one does
+    pad = int(4 * SignalOptions().velocity_smoothing_s * sample_rate_hz) + 8
+    draws = rng.normal(0.0, sd, (NOISE_DRAWS, hi - lo + 2 * pad))
+    return derived_acceleration(draws, sample_rate_hz)[:, pad:pad + hi - lo]
+
+
 def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> list[EffectData]:
     """EffectData of every periodic test of the series, in the series' order.
 
@@ -106,15 +151,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         # a recorded acceleration that prepare_test refused (PreparedTest.notes) is not used here either
         measured_a = record.get("a") if p.acceleration_measured else None
         if measured_a is None:
-            # the displacement smoothed as the fit's velocity is (2.5 ms) and differentiated
-            # twice at the recorded rate. The second derivative of the 4f-low-passed u (used
-            # before) smears each reversal over 1/fc: on the clean twin without `a` it left
-            # 453 N of residual against a 317 N floor and a spurious channel delay was selected;
-            # on an independent generator's series 1425 N against 239 N. The smoothing's and the
-            # differences' second-order error is taken out (signals.acceleration_from_velocity)
-            smoothing_s = SignalOptions().velocity_smoothing_s
-            smoothed = gaussian_filter1d(np.asarray(record.u, dtype=float), smoothing_s * fs)
-            measured_a = acceleration_from_velocity(time_derivative(smoothed, fs), fs, smoothing_s)
+            measured_a = derived_acceleration(record.u, fs)
         a_raw = np.asarray(measured_a, dtype=float)
         if p.order is not None and last > first:
             position = (p.order - first) / (last - first)
@@ -135,9 +172,11 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
                 F_raw=np.asarray(record.F, dtype=float)[lo:hi],
             )
         a_noise = None
+        rng = np.random.default_rng(zlib.crc32(p.id.encode()))
         if p.acceleration_measured and p.acceleration_noise_sd > 0.0:
-            rng = np.random.default_rng(zlib.crc32(p.id.encode()))
             a_noise = rng.normal(0.0, p.acceleration_noise_sd, (NOISE_DRAWS, hi - lo))
+        elif not p.acceleration_measured:
+            a_noise = derived_acceleration_noise(record.u, p.velocity_full, cutoff, fs, lo, hi, rng)
         out.append(EffectData(
             id=p.id,
             frequency_hz=p.frequency_hz,
