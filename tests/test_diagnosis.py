@@ -340,6 +340,23 @@ def test_without_an_accelerometer_a_clean_table_gets_no_specimen():
     assert specimen["score"] < 10.0
 
 
+def test_without_an_accelerometer_a_stiction_finding_carries_a_warning():
+    """Stiction 1.3 at 10 mm/s with `a` removed: it is found, but the derived acceleration rounds
+    off each breakaway, and the ratio reads several times too far from 1 (5.3 +- 0.4 measured
+    here), so the diagnosis must say that the ratio rests on it."""
+    from dataclasses import replace
+
+    from bayes_sst.io import TestRecord
+
+    series = simulate("sst-paper", seed=21, spread=0.02, truth_overrides={"static_ratio": 1.3, "stribeck_velocity": 0.01})
+    without = replace(series, tests=tuple(
+        TestRecord(r.spec, {k: v for k, v in r.columns.items() if k not in ("a", "v")}) for r in series.tests))
+    d = diagnose(without)
+    assert d.selected == ["stiction"]
+    assert any(note.startswith("stiction is read at the reversals from an acceleration derived from u")
+               for note in d.notes)
+
+
 @pytest.mark.parametrize("sample_rate_hz", [200.0, 1000.0])
 def test_derived_acceleration_noise_draws_match_the_error_that_u_noise_makes(sample_rate_hz):
     """A 2 Hz sine of 20 mm with 20 um of white noise on u: the draws that the diagnosis carries

@@ -763,6 +763,14 @@ def diagnose(
         notes.append(f"{', '.join(reads_a)} rests on an acceleration derived from u in "
                      f"{len(derived)} of {len(tests)} tests (no accelerometer): without one a light, "
                      "stiff specimen can be mimicked by the derivation's errors; confirm with a recorded `a`")
+    at_reversals = [e.name for e in [s.effect for s in selected] + [e for e, _ in given] if e.name in REVERSAL_EFFECTS]
+    if derived and at_reversals:
+        # measured on the twin at 200 Hz with `a` removed: 1.3 at 10 mm/s read as 5.3 +- 0.4
+        # (the Stribeck velocity at its grid's lower end), 1.2 at 20 mm/s as 1.23
+        notes.append(f"{', '.join(at_reversals)} is read at the reversals from an acceleration derived from u "
+                     f"in {len(derived)} of {len(tests)} tests (no accelerometer), which rounds off a "
+                     "breakaway a few samples long: its static ratio can come out several times too far "
+                     "from 1, beyond its sd; confirm with a recorded `a`")
     top = next((w for w in where if not w.get("band") and w["share"] > 0), None)
     region = {}
     if top is not None:
