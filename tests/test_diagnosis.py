@@ -142,13 +142,14 @@ def test_verdict_says_when_the_residual_had_no_visible_excess(clean_diagnosis):
 
 
 def test_amplitude_z_of_a_scored_effect_is_its_coefficient_over_its_sd(clean_diagnosis):
-    """EffectScore.amplitude_z from the extended fit's own coefficient and sd (drift, one
-    linear coefficient); an effect without one (the delay) passes the gate and reports None."""
+    """EffectScore.amplitude_z from the extended fit's own coefficient and posterior sd (drift,
+    one linear coefficient; the reported sd may be the larger sandwich sd); an effect without
+    one (the delay) passes the gate and reports None."""
     steps = clean_diagnosis.to_json()["steps"][0]["candidates"]
     by_name = {c["name"]: c for c in steps}
-    drift = by_name["drift"]
-    assert drift["amplitude_z"] == pytest.approx(abs(drift["params"]["drift"]["mean"]) / drift["params"]["drift"]["sd"],
-                                                 rel=1e-6)
+    drift = by_name["drift"]["params"]["drift"]
+    assert by_name["drift"]["amplitude_z"] == pytest.approx(abs(drift["mean"]) / drift["sd_posterior"], rel=1e-6)
+    assert drift["sd"] >= drift["sd_posterior"]
     assert by_name["channel_delay"]["amplitude_z"] is None
     json.dumps(clean_diagnosis.to_json(), allow_nan=False)  # what diagnosis.json needs
 
@@ -231,7 +232,8 @@ def test_between_test_share_is_the_excess_scatter_of_the_per_test_coefficients_e
     def model(relative):
         theta = np.tile(mu, (n, 1))
         theta[:, 2:] = mu[2:] * relative
-        return ModelFit(terms=(), names=BASE_COEFFICIENTS, mu=mu, mu_sd=0.01 * mu, theta=theta, alpha=0.5,
+        return ModelFit(terms=(), names=BASE_COEFFICIENTS, mu=mu, mu_sd=0.01 * mu, mu_sandwich_sd=0.01 * mu,
+                        theta=theta, alpha=0.5,
                         spread=0.02, phi=np.zeros(n), sigma=np.ones(n), log_marginal=0.0, elpd=np.zeros(n),
                         residuals=())
 
@@ -355,6 +357,36 @@ def test_without_an_accelerometer_a_stiction_finding_carries_a_warning():
     assert d.selected == ["stiction"]
     assert any(note.startswith("stiction is read at the reversals from an acceleration derived from u")
                for note in d.notes)
+
+
+@pytest.mark.parametrize("shared", [True, False])
+def test_the_sandwich_sd_matches_the_posterior_sd_and_widens_where_the_tests_disagree(shared):
+    """Twelve synthetic tests of four base columns and one effect column with white noise. With
+    one effect coefficient for all tests the cluster-robust sd (ModelFit.mu_sandwich_sd) agrees
+    with the posterior sd; when each test has its own coefficient (scatter 0.3 about 1, the
+    model's single coefficient being wrong for each) the posterior sd stays as small while the
+    sandwich sd follows the scatter of the tests' own least-squares coefficients, computed here
+    independently, divided by sqrt(J)."""
+    from bayes_sst.diagnosis._engine import _fit
+
+    rng = np.random.default_rng(8)
+    J, n, noise = 12, 400, 0.3
+    effect_coefficient = np.ones(J) if shared else 1.0 + 0.3 * rng.standard_normal(J)
+    ys, Xs, own = [], [], []
+    for j in range(J):
+        X = rng.standard_normal((5, n))
+        y = np.array([2.0, -1.0, 0.5, 1.5]) @ X[:4] + effect_coefficient[j] * X[4] + noise * rng.standard_normal(n)
+        ys.append(y)
+        Xs.append(X)
+        own.append(np.linalg.lstsq(X.T, y, rcond=None)[0][4])
+    fit = _fit(ys, Xs, ("Me", "Ke", "Ce", "Fmu", "effect.c"), np.array([10.0]), 0.5, 0.0, ())
+    posterior, sandwich = fit.mu_sd[4], fit.mu_sandwich_sd[4]
+    if shared:
+        assert sandwich == pytest.approx(posterior, rel=0.35)
+    else:
+        expected = np.std(own, ddof=1) / math.sqrt(J)
+        assert sandwich == pytest.approx(expected, rel=0.35)
+        assert sandwich > 5 * posterior
 
 
 @pytest.mark.parametrize("sample_rate_hz", [200.0, 1000.0])

@@ -56,7 +56,10 @@ class ModelFit:
     """One model scored on a series (SI coefficients).
 
     names : coefficient names; mu, mu_sd : population coefficients and their sd (given the
-    profiled alpha, spread, noise); theta : (J, p) per-test coefficients (posterior means);
+    profiled alpha, spread, noise); mu_sandwich_sd : their cluster-robust sd over tests,
+    sqrt(diag(Q^-1 S Q^-1)) with S = J/(J-1)*sum_j psi_j psi_j', psi_j = h_j - H_j mu (test j's
+    score at mu), which also holds what the tests disagree on beyond the model's noise (a
+    column whose shape is not the data's shows so); theta : (J, p) per-test coefficients (posterior means);
     alpha; spread : (s_1, s_2), the relative test-to-test spreads of (Me, Ke) and of (Ce, Fmu);
     phi, sigma : (J,) noise; log_marginal; elpd : (J,) leave-one-test-out log predictive
     densities; residuals : per-test y - X theta_j at the kept samples, N.
@@ -66,6 +69,7 @@ class ModelFit:
     names: tuple[str, ...]
     mu: np.ndarray
     mu_sd: np.ndarray
+    mu_sandwich_sd: np.ndarray
     theta: np.ndarray
     alpha: float
     spread: tuple[float, float]
@@ -312,10 +316,17 @@ def _fit(ys, Xs, names, effect_prior, alpha, spread, terms, noise=None) -> Model
     theta_scaled = mu[None, :] + rho[None, :] * np.einsum("jkl,jl->jk", B_inv, rho[None, :] * (b - A @ mu))
     to_si = y_scale / col_scale
     mu_cov = np.linalg.inv(Q)
+    # the tests' own scatter of the score (cluster-robust "sandwich"): psi_j = h_j - H_j mu is
+    # test j's gradient at the pooled mu, and sum_j psi_j psi_j' replaces the model's sum_j H_j,
+    # J/(J-1) for the few tests there are
+    psi = h - np.einsum("jkl,l->jk", H, mu)
+    meat = np.einsum("ji,jk->ik", psi, psi) * J / max(J - 1, 1)
     theta = theta_scaled * to_si
     residuals = tuple(y - th @ X for y, X, th in zip(ys, Xs, theta))
     return ModelFit(
-        terms=terms, names=names, mu=mu * to_si, mu_sd=np.sqrt(np.diag(mu_cov)) * to_si, theta=theta,
+        terms=terms, names=names, mu=mu * to_si, mu_sd=np.sqrt(np.diag(mu_cov)) * to_si,
+        mu_sandwich_sd=np.sqrt(np.maximum(np.diag(mu_cov @ meat @ mu_cov), 0.0)) * to_si,
+        theta=theta,
         alpha=float(alpha), spread=s, phi=phi, sigma=sigma * y_scale,
         log_marginal=float(log_marginal + sum(np.log(y_scale) * -n for n in n_pairs)),
         elpd=elpd - n_pairs * np.log(y_scale), residuals=residuals,
