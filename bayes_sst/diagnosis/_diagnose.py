@@ -766,7 +766,7 @@ def diagnose(
     at_reversals = [e.name for e in [s.effect for s in selected] + [e for e, _ in given] if e.name in REVERSAL_EFFECTS]
     if derived and at_reversals:
         # measured on the twin at 200 Hz with `a` removed: 1.3 at 10 mm/s read as 5.3 +- 0.4
-        # (the Stribeck velocity at its grid's lower end), 1.2 at 20 mm/s as 1.23
+        # (at a Stribeck velocity of 3 mm/s), 1.2 at 20 mm/s as 1.23
         notes.append(f"{', '.join(at_reversals)} is read at the reversals from an acceleration derived from u "
                      f"in {len(derived)} of {len(tests)} tests (no accelerometer), which rounds off a "
                      "breakaway a few samples long: its static ratio can come out several times too far "

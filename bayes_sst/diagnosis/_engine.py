@@ -59,7 +59,8 @@ class ModelFit:
     profiled alpha, spread, noise); mu_sandwich_sd : their cluster-robust sd over tests,
     sqrt(diag(Q^-1 S Q^-1)) with S = J/(J-1)*sum_j psi_j psi_j', psi_j = h_j - H_j mu (test j's
     score at mu), which also holds what the tests disagree on beyond the model's noise (a
-    column whose shape is not the data's shows so); theta : (J, p) per-test coefficients (posterior means);
+    column whose shape is not the data's shows so); theta : (J, p) per-test coefficients
+    (posterior means);
     alpha; spread : (s_1, s_2), the relative test-to-test spreads of (Me, Ke) and of (Ce, Fmu);
     phi, sigma : (J,) noise; log_marginal; elpd : (J,) leave-one-test-out log predictive
     densities; residuals : per-test y - X theta_j at the kept samples, N.
