@@ -5,7 +5,8 @@ coverage and z = (mean - truth)/sd per parameter.
     PYTHONPATH=. .venv/bin/python benchmarks/independent_coverage.py --series 24 --dir /tmp/independent \
         --out benchmarks/results/independent_coverage.json
 
-Series missing from --dir are generated first (about 20 s each).
+Series missing from --dir are generated first (about 20 s each). --without-acceleration
+removes the `a` and `v` columns first (a lab without an accelerometer).
 """
 
 from __future__ import annotations
@@ -31,8 +32,10 @@ def main():
     parser.add_argument("--out", default=None)
     parser.add_argument("--signal", action="append", default=[], metavar="NAME=VALUE",
                         help="override a SignalOptions field, e.g. reversal_band=0.1")
+    parser.add_argument("--without-acceleration", action="store_true",
+                        help="remove the a (and v) columns before fitting")
     args = parser.parse_args()
-    from _options import signal_overrides
+    from _options import signal_overrides, without_motion_sensors
 
     overrides = signal_overrides(args.signal)
     sys.path.insert(0, str(HERE))
@@ -50,7 +53,10 @@ def main():
             make_series(seed, folder)
         truth = json.load(open(os.path.join(folder, "truth.json")))["population"]
         started = time.perf_counter()
-        result = fit(load_series(folder), seed=seed, signals=SignalOptions(**overrides))
+        series = load_series(folder)
+        if args.without_acceleration:
+            series = without_motion_sensors(series)
+        result = fit(series, seed=seed, signals=SignalOptions(**overrides))
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"],
                "divergences": summary["divergences"], "max_r_hat": summary["max_r_hat"],
@@ -72,7 +78,8 @@ def main():
                          "z_mean": float(z.mean()), "z_sd": float(z.std(ddof=1))}
         print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f} sd {z.std(ddof=1):.2f}")
     if args.out:
-        Path(args.out).write_text(json.dumps({"signals": overrides, "summary": summary, "rows": rows}, indent=1))
+        Path(args.out).write_text(json.dumps({"signals": overrides, "without_acceleration": args.without_acceleration,
+                                              "summary": summary, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":
