@@ -395,8 +395,12 @@ def test_derived_acceleration_noise_draws_match_the_error_that_u_noise_makes(sam
     through its errors-in-variables correction without an accelerometer must be as large as
     the error the noise actually leaves in the derived acceleration (noise-free record's
     derived a subtracted), per sample and below 20 Hz (over as many noise records as draws)."""
-    from bayes_sst.diagnosis._data import derived_acceleration, derived_acceleration_noise
+    from bayes_sst.diagnosis._data import VELOCITY_SMOOTHING_S, derived_acceleration_noise
+    from bayes_sst.signals import derived_acceleration as derived
     from bayes_sst.signals import zero_phase_lowpass
+
+    def derived_acceleration(x, rate):
+        return derived(x, rate, VELOCITY_SMOOTHING_S)
 
     fs, f, sigma = sample_rate_hz, 2.0, 20e-6
     t = np.arange(int(30 * fs)) / fs

@@ -16,14 +16,12 @@ import math
 import zlib
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from bayes_sst.effects import EffectData
 from bayes_sst.io import Series
-from bayes_sst.signals import (SignalOptions, acceleration_from_velocity, prepare_series, time_derivative,
-                               without_steady_offsets, zero_phase_lowpass)
-from bayes_sst.signals._noise import NOISE_DRAWS, white_noise_sd
-from bayes_sst.signals._prepare import NOISE_SPEED_SHARE
+from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_series, without_steady_offsets,
+                               zero_phase_lowpass)
+from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 
 # The default view treats the signals as the fit does: the reversal band (|v| < 10 % of the
 # peak speed) is left out and force and regressors are multiplied by the reversal weight before
@@ -69,6 +67,8 @@ REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, rever
 STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_band_without_accelerometer=None,
                                reversal_window=False, periodic_acceleration=False)
 DEFAULT_STRUT_H = 1.0
+# without an accelerometer, u is smoothed as the fit's velocity is before it is differentiated
+VELOCITY_SMOOTHING_S = SignalOptions().velocity_smoothing_s
 
 
 def strut_height(series: Series) -> float:
@@ -82,25 +82,10 @@ def strut_height(series: Series) -> float:
     return h if math.isfinite(h) and h > 0 else DEFAULT_STRUT_H
 
 
-def derived_acceleration(u, sample_rate_hz: float):
-    """The acceleration without an accelerometer: u smoothed as the fit's velocity is (2.5 ms
-    Gaussian) and differentiated twice at the recorded rate, its second-order error taken out
-    (signals.acceleration_from_velocity); along the last axis of u.
-
-    Why not the second derivative of the 4f-low-passed u (used before): it smears each
-    reversal over 1/fc; on the clean twin without `a` it left 453 N of residual against a 317 N
-    floor and a spurious channel delay was selected; on an independent generator's series
-    1425 N against 239 N.
-    """
-    smoothing_s = SignalOptions().velocity_smoothing_s
-    smoothed = gaussian_filter1d(np.asarray(u, dtype=float), smoothing_s * sample_rate_hz, axis=-1)
-    return acceleration_from_velocity(time_derivative(smoothed, sample_rate_hz), sample_rate_hz, smoothing_s)
-
-
 def derived_acceleration_noise(u, velocity, cutoff_hz: float, sample_rate_hz: float, lo: int, hi: int,
                                rng: np.random.Generator) -> np.ndarray | None:
-    """(NOISE_DRAWS, hi - lo): the displacement sensor's white noise, read off u (white_noise_sd
-    of u less its low-pass, mid-stroke), drawn and carried through derived_acceleration, for
+    """(NOISE_DRAWS, hi - lo): the displacement sensor's white noise, read off u
+    (mid_stroke_noise_sd of u less its low-pass), drawn and carried through derived_acceleration, for
     the errors-in-variables correction that a recorded a's noise gets (None without noise).
 
     Why: twice differentiated, u's noise is a noise in the acceleration regressor that grows as
@@ -112,18 +97,17 @@ def derived_acceleration_noise(u, velocity, cutoff_hz: float, sample_rate_hz: fl
     was selected on three of ten clean series of that generator.
     """
     u = np.asarray(u, dtype=float)
-    speed = np.abs(np.asarray(velocity, dtype=float)[lo:hi])
-    if speed.size == 0:
+    if hi <= lo:
         return None
     above_band = (u - zero_phase_lowpass(u, cutoff_hz, sample_rate_hz))[lo:hi]
-    sd = white_noise_sd(above_band, where=speed >= NOISE_SPEED_SHARE * float(np.percentile(speed, 99.5)))
+    sd = mid_stroke_noise_sd(above_band, np.asarray(velocity)[lo:hi])
     if not sd > 0.0:
         return None
     # the smoothing kernel's reach (4 sds) and the differences' few samples, so every kept
     # sample sees noise on both sides as a recorded one does
-    pad = int(4 * SignalOptions().velocity_smoothing_s * sample_rate_hz) + 8
+    pad = int(4 * VELOCITY_SMOOTHING_S * sample_rate_hz) + 8
     draws = rng.normal(0.0, sd, (NOISE_DRAWS, hi - lo + 2 * pad))
-    return derived_acceleration(draws, sample_rate_hz)[:, pad:pad + hi - lo]
+    return derived_acceleration(draws, sample_rate_hz, VELOCITY_SMOOTHING_S)[:, pad:pad + hi - lo]
 
 
 def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> list[EffectData]:
@@ -151,7 +135,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         # a recorded acceleration that prepare_test refused (PreparedTest.notes) is not used here either
         measured_a = record.get("a") if p.acceleration_measured else None
         if measured_a is None:
-            measured_a = derived_acceleration(record.u, fs)
+            measured_a = derived_acceleration(record.u, fs, VELOCITY_SMOOTHING_S)
         a_raw = np.asarray(measured_a, dtype=float)
         if p.order is not None and last > first:
             position = (p.order - first) / (last - first)

@@ -755,7 +755,8 @@ def diagnose(
     final = current
     rms_after = _rms(final.residuals)
     derived = [t.id for t in tests if not t.acceleration_measured]
-    reads_a = [e.name for e in [s.effect for s in selected] + [e for e, _ in given] if e.reads_acceleration]
+    found = [s.effect for s in selected] + [e for e, _ in given]
+    reads_a = [e.name for e in found if e.reads_acceleration]
     if derived and reads_a:
         # measured: without an accelerometer, clean series score a specimen at up to 31 nats;
         # DERIVED_AMPLITUDE_Z kept all 15 clean series tried clean, where 3 had one selected
@@ -763,7 +764,7 @@ def diagnose(
         notes.append(f"{', '.join(reads_a)} rests on an acceleration derived from u in "
                      f"{len(derived)} of {len(tests)} tests (no accelerometer): without one a light, "
                      "stiff specimen can be mimicked by the derivation's errors; confirm with a recorded `a`")
-    at_reversals = [e.name for e in [s.effect for s in selected] + [e for e, _ in given] if e.name in REVERSAL_EFFECTS]
+    at_reversals = [e.name for e in found if e.name in REVERSAL_EFFECTS]
     if derived and at_reversals:
         # measured on the twin at 200 Hz with `a` removed: 1.3 at 10 mm/s read as 5.3 +- 0.4
         # (at a Stribeck velocity of 3 mm/s), 1.2 at 20 mm/s as 1.23

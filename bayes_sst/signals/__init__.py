@@ -2,7 +2,7 @@
 
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import acceleration_from_velocity, lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import acceleration_from_velocity, derived_acceleration, lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._prepare import (
     MIN_STEADY_CYCLES,
     PreparedTest,
@@ -23,6 +23,7 @@ __all__ = [
     "PreparedTest",
     "SignalOptions",
     "complementary_velocity",
+    "derived_acceleration",
     "friction_load",
     "fundamental_phase",
     "lowpass_sos",

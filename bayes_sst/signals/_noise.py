@@ -15,6 +15,8 @@ NOISE_KEEP = 0.1
 # sd of a standard normal from the median absolute deviation
 MAD_TO_SD = 1.482602218505602
 MIN_SAMPLES = 50
+# a channel's noise is read where the speed is at least this share of its peak
+NOISE_SPEED_SHARE = 0.6
 
 
 def white_noise_sd(x, where=None) -> float:
@@ -44,3 +46,12 @@ def white_noise_sd(x, where=None) -> float:
         if chosen.sum() >= MIN_SAMPLES:
             d = d[chosen]
     return float(MAD_TO_SD * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
+
+
+def mid_stroke_noise_sd(above_band, speed) -> float:
+    """white_noise_sd of a channel less its low-pass (above_band), over the samples where the
+    speed is at least NOISE_SPEED_SHARE of its peak (the 99.5th percentile of |speed|). Why
+    mid-stroke: the friction step and a triangle's turn put the channel's own sharp features
+    near the reversals."""
+    speed = np.abs(np.asarray(speed, dtype=float))
+    return white_noise_sd(above_band, where=speed >= NOISE_SPEED_SHARE * float(np.percentile(speed, 99.5)))

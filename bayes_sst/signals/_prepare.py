@@ -68,11 +68,9 @@ from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import time_derivative, zero_phase_lowpass
-from bayes_sst.signals._noise import white_noise_sd
+from bayes_sst.signals._noise import mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
-# the accelerometer's noise is read where the speed is at least this share of its peak
-NOISE_SPEED_SHARE = 0.6
 
 
 @dataclass(frozen=True)
@@ -424,11 +422,9 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
     if measured_a is not None and options.accelerometer_noise:
-        # mid-stroke only: the friction step and a triangle's turn put the acceleration's own
-        # sharp features near the reversals
-        # and less the motion's band, whose curvature shows in second differences at high f/fs
+        # less the motion's band, whose curvature shows in second differences at high f/fs
         above_band = (np.asarray(measured_a, dtype=float) - a_low)[window.start : window.stop]
-        noise_sd = white_noise_sd(above_band, where=speed >= NOISE_SPEED_SHARE * peak_speed)
+        noise_sd = mid_stroke_noise_sd(above_band, speed)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
     u_model = zero_phase_lowpass(record.u * weight, cutoff, fs) if weighted else u_f
