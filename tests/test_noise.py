@@ -118,3 +118,92 @@ def test_fit_corrected_for_accelerometer_noise_recovers_mass_and_stiffness():
         assert corrected[name]["q05"] <= truth[name] <= corrected[name]["q95"], name
     raw = summarize(fit(series, seed=1, signals=SignalOptions(accelerometer_noise=False)).tree)["parameters"]
     assert raw["Me"]["mean"] < 0.8 * truth["Me"]
+
+
+def _periodic_acceleration(f, n_cycles, fs):
+    """A band-limited periodic deck acceleration (fundamental and two harmonics) over whole
+    cycles, with its displacement."""
+    t = np.arange(int(round(n_cycles * fs / f))) / fs
+    omega = 2 * np.pi * f
+    u = 0.02 * np.sin(omega * t) + 0.0004 * np.sin(3 * omega * t + 0.3) + 0.0001 * np.sin(5 * omega * t)
+    a = -(omega**2) * (0.02 * np.sin(omega * t) + 9 * 0.0004 * np.sin(3 * omega * t + 0.3)
+                       + 25 * 0.0001 * np.sin(5 * omega * t))
+    return t, u, a
+
+
+def _excess(a, u, f, fs, white_sd):
+    from bayes_sst.signals._filters import lowpass_power_gain
+    from bayes_sst.signals._noise import coloured_noise_excess
+
+    cutoff = 6 * f
+    return coloured_noise_excess(
+        zero_phase_lowpass(a, cutoff, fs), fs / f, cutoff, fs, white_sd,
+        band_gain=lambda frequency: lowpass_power_gain(frequency, cutoff, fs),
+        covariates=[zero_phase_lowpass(u, cutoff, fs)],
+    )
+
+
+@pytest.mark.parametrize("f, correlation_s", [(0.31, 1.0), (1.37, 0.2)])
+def test_coloured_noise_excess_is_none_for_white_noise_and_reads_a_drift(f, correlation_s):
+    """White accelerometer noise keeps the white treatment (no excess in any of 8 records);
+    an AR(1) drift of known spectrum, added on top, is read: the estimate's in-band power
+    matches the drift's own (the AR(1) spectrum summed over the band) within 40 %."""
+    from bayes_sst.twin._noise import ar1
+
+    fs, sigma, drift = 200.0, 0.03, 0.04
+    t, u, a = _periodic_acceleration(f, 12, fs)
+    cutoff = 6 * f
+    for seed in range(8):
+        noise = sigma * np.random.default_rng(seed).standard_normal(t.size)
+        assert _excess(a + noise, u, f, fs, sigma) is None, seed
+    estimates = []
+    phi = np.exp(-1 / (fs * correlation_s))
+    for seed in range(6):
+        rng = np.random.default_rng(100 + seed)
+        noisy = a + sigma * rng.standard_normal(t.size) + ar1(rng, t.size, drift, correlation_s, fs)
+        found = _excess(noisy, u, f, fs, sigma)
+        assert found is not None, seed
+        frequency = np.arange(found.excess.size) * found.step_hz
+        band = (frequency > 0) & (frequency <= cutoff)
+        # the AR(1)'s expected periodogram, drift^2 (1 - phi^2)/|1 - phi e^{-iw}|^2, per bin
+        expected = drift**2 * (1 - phi**2) / np.abs(1 - phi * np.exp(-2j * np.pi * frequency / fs)) ** 2
+        estimates.append(found.excess[band].sum() / expected[band].sum())
+    assert np.mean(estimates) == pytest.approx(1.0, rel=0.4)
+
+
+def test_noise_spectrum_draws_have_the_spectrum_they_are_given():
+    """NoiseSpectrum.draws: the mean periodogram of many draws is the excess, interpolated to
+    the draws' own frequency grid (here a different length than the one it was read on)."""
+    from bayes_sst.signals._noise import NoiseSpectrum
+
+    fs = 100.0
+    step = fs / 1000
+    frequency = np.arange(501) * step
+    excess = np.where(frequency <= 5.0, 1e-3 / (1 + (frequency / 0.5) ** 2), 0.0)
+    draws = NoiseSpectrum(step, excess).draws(400, 1600, fs, np.random.default_rng(3))
+    periodogram = np.mean(np.abs(np.fft.rfft(draws, axis=-1)) ** 2, axis=0) / 1600
+    grid = np.fft.rfftfreq(1600, 1 / fs)
+    target = np.interp(grid, frequency, excess)
+    inside = (grid > 0.2) & (grid < 4.5)
+    assert np.allclose(periodogram[inside], target[inside], rtol=0.25)
+    assert periodogram[grid > 6.0].max() < 1e-12
+
+
+def test_the_twin_accelerometer_drift_is_read_on_its_slow_tests_and_nothing_else_changes():
+    """The virtual table's a_drift (AR(1), 1 s): the same series without it has identical u
+    and F and no excess; with it, the slow tests' prepared acceleration carries an excess
+    (12 steady cycles: with the twin's default 6, every bin between two harmonics is next to a
+    harmonic or a half-harmonic and nothing can be read)."""
+    from bayes_sst.signals import prepare_series
+    from bayes_sst.twin import simulate
+
+    plan = [dict(kind="sine", frequency_hz=f, amplitude_m=0.08) for f in (0.25, 0.4)]
+    plain = simulate("sst-paper", seed=3, plan=plan, n_cycles=12)
+    drifting = simulate("sst-paper", seed=3, plan=plan, n_cycles=12,
+                        noise=dict(a_drift=0.02, a_drift_correlation_s=1.0))
+    for one, other in zip(plain.tests, drifting.tests):
+        assert np.array_equal(one.columns["u"], other.columns["u"])
+        assert np.array_equal(one.columns["F"], other.columns["F"])
+        assert 0.01 < np.std(other.columns["a"] - one.columns["a"]) < 0.06
+    assert all(p.acceleration_noise_excess is None for p in prepare_series(plain))
+    assert all(p.acceleration_noise_excess is not None for p in prepare_series(drifting))

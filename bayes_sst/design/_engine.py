@@ -171,7 +171,7 @@ def lagged(columns: TestColumns, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     accelerometer noise, less that noise's share (inference._statistics.acceleration_noise_correction)."""
     moments, slopes = response_moments(y, columns.X, columns.dX, columns.valid)
     source = columns.source
-    if source is not None and source.acceleration_noise_sd > 0.0:
+    if source is not None and source.acceleration_noise_known:
         moments = moments - acceleration_noise_correction(
             source, moments, columns.valid, columns.grid, columns.scale, columns.force_scale, columns.noise_mass_kg
         )[None]

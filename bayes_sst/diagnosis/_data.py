@@ -157,8 +157,8 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
             )
         a_noise = None
         rng = np.random.default_rng(zlib.crc32(p.id.encode()))
-        if p.acceleration_measured and p.acceleration_noise_sd > 0.0:
-            a_noise = rng.normal(0.0, p.acceleration_noise_sd, (NOISE_DRAWS, hi - lo))
+        if p.acceleration_measured and p.acceleration_noise_known:
+            a_noise = p.raw_acceleration_noise(NOISE_DRAWS, hi - lo, rng)
         elif not p.acceleration_measured:
             a_noise = derived_acceleration_noise(record.u, p.velocity_full, cutoff, fs, lo, hi, rng)
         out.append(EffectData(

@@ -263,7 +263,7 @@ def lagged_moments(
 
         def corrected(j):
             test = tests[j]
-            if test.acceleration_noise_sd <= 0.0:
+            if not test.acceleration_noise_known:
                 return all_moments[j]
             return all_moments[j] - acceleration_noise_correction(
                 test, all_moments[j], valids[j], alpha_grid, coefficient_scale, force_scale, mass

@@ -147,3 +147,11 @@ def second_derivative(x, sample_rate_hz: float):
     out[-2] = (x[-3] - 2.0 * x[-2] + x[-1]) / h2
     out[0], out[-1] = out[1], out[-2]
     return out
+
+
+def lowpass_power_gain(frequency_hz, cutoff_hz: float, sample_rate_hz: float) -> np.ndarray:
+    """|H(f)|^4: the power gain of zero_phase_lowpass at these frequencies (a single pass's
+    |H|^2, twice)."""
+    sos = _butterworth(BUTTERWORTH_ORDER, _relative_cutoff(cutoff_hz, sample_rate_hz))
+    _, response = _sp_signal.sosfreqz(sos, worN=np.asarray(frequency_hz, dtype=float), fs=sample_rate_hz)
+    return np.abs(response) ** 4

@@ -47,9 +47,11 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    than a quarter sample over the window (the motion's period is not the test frequency's).
    The average only reaches cycles a whole number of samples apart, so at most test
    frequencies it leaves much or all of the noise; the noise's level is therefore also read
-   off the record (white_noise_sd of a less its low-pass, mid-stroke), and the inference
-   subtracts what that noise adds to its moments (inference.lagged_moments, errors in
-   variables). See README, known limitations.
+   off the record (white_noise_sd of a less its low-pass, mid-stroke), together with any
+   in-band drift beyond that white level (coloured_noise_excess: a drifting accelerometer's
+   noise sits at a slow test's own frequencies), and the inference subtracts what that noise
+   adds to its moments (inference.lagged_moments, errors in variables). See README, known
+   limitations.
 6. Decimation. Inside the steady window every D-th sample is kept, D chosen so the kept
    rate is about 2*fc: the filtered residual is then close to white over the kept band and
    an AR(1) term can model what colour remains, instead of facing the steep roll-off of a
@@ -67,8 +69,8 @@ from bayes_sst.io import Series, SeriesFormatError, TestRecord, table_number
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import time_derivative, zero_phase_lowpass
-from bayes_sst.signals._noise import mid_stroke_noise_sd
+from bayes_sst.signals._filters import lowpass_power_gain, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
 
@@ -108,6 +110,8 @@ class SignalOptions:
     accelerometer_noise : estimate the white noise of a measured acceleration
         (acceleration_noise_sd), so that the likelihood's moments can be rid of what that
         noise adds to them (inference.lagged_moments, errors in variables).
+    coloured_accelerometer_noise : estimate, as well, the measured acceleration's in-band
+        noise beyond its white level (a drifting accelerometer; signals.coloured_noise_excess).
     """
 
     cutoff_multiple: float = 4.0
@@ -125,6 +129,7 @@ class SignalOptions:
     remove_offsets: bool = True
     payload_friction: bool = True
     accelerometer_noise: bool = True
+    coloured_accelerometer_noise: bool = True
     check_accelerometer: bool = True
 
     def band_for(self, measured_acceleration: bool) -> "SignalOptions":
@@ -174,6 +179,7 @@ class PreparedTest:
     weight_full: np.ndarray | None = None
     friction_load: float = 1.0  # N_test/N_empty, see friction_load
     acceleration_noise_sd: float = 0.0  # white noise of the recorded a (m/s^2); 0: none known
+    acceleration_noise_excess: NoiseSpectrum | None = None  # its in-band noise beyond the white level
     acceleration_averaged: bool = False  # a replaced by its cycle-synchronous average
     acceleration_measured: bool = False  # a is the recorded one (not derived from u)
     notes: tuple[str, ...] = ()  # what the treatment changed about the record, for the user
@@ -203,16 +209,29 @@ class PreparedTest:
         filtered = zero_phase_lowpass(values, self.cutoff_hz, self.sample_rate_hz, axis=-1)
         return filtered[..., self.index - lo]
 
+    @property
+    def acceleration_noise_known(self) -> bool:
+        return self.acceleration_noise_sd > 0.0 or self.acceleration_noise_excess is not None
+
+    def raw_acceleration_noise(self, n_draws: int, length: int, rng) -> np.ndarray:
+        """(n_draws, length) draws of the recorded accelerometer's noise at the recorded rate:
+        white of sd acceleration_noise_sd plus, where one was read, the in-band excess
+        (signals.coloured_noise_excess)."""
+        noise = rng.normal(0.0, self.acceleration_noise_sd, (n_draws, length))
+        if self.acceleration_noise_excess is not None:
+            noise += self.acceleration_noise_excess.draws(n_draws, length, self.sample_rate_hz, rng)
+        return noise
+
     def acceleration_noise(self, n_draws: int, seed: int = 0) -> np.ndarray:
-        """(n_draws, len(index)) draws of white noise of sd acceleration_noise_sd treated
-        exactly as the recorded acceleration was: cycle-synchronous average (when it was
+        """(n_draws, len(index)) draws of the accelerometer's noise (raw_acceleration_noise)
+        treated exactly as the recorded acceleration was: cycle-synchronous average (when it was
         applied), reversal weight, low-pass, decimation. What the accelerometer's noise adds to
         `a`, for the errors-in-variables correction of the moments; zeros when none is known.
         """
-        if self.acceleration_noise_sd <= 0.0:
+        if not self.acceleration_noise_known:
             return np.zeros((n_draws, len(self.index)))
         lo, hi = self.filter_span
-        noise = np.random.default_rng(seed).normal(0.0, self.acceleration_noise_sd, (n_draws, hi - lo))
+        noise = self.raw_acceleration_noise(n_draws, hi - lo, np.random.default_rng(seed))
         if self.acceleration_averaged:
             local = self.window._replace(start=self.window.start - lo, stop=self.window.stop - lo)
             noise[:, local.start : local.stop] = periodic_component(noise, local)
@@ -421,10 +440,13 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     weight = reversal_weight(v_f, peak_speed, options)
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
+    noise_excess = None
     if measured_a is not None and options.accelerometer_noise:
         # less the motion's band, whose curvature shows in second differences at high f/fs
         above_band = (np.asarray(measured_a, dtype=float) - a_low)[window.start : window.stop]
         noise_sd = mid_stroke_noise_sd(above_band, speed)
+    if measured_a is not None and options.accelerometer_noise and options.coloured_accelerometer_noise:
+        noise_excess = _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, noise_sd)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
     u_model = zero_phase_lowpass(record.u * weight, cutoff, fs) if weighted else u_f
@@ -452,9 +474,25 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         velocity_full=v_model,
         weight_full=weight if weighted else None,
         acceleration_noise_sd=noise_sd,
+        acceleration_noise_excess=noise_excess,
         acceleration_averaged=averaged,
         acceleration_measured=measured_a is not None,
         notes=notes,
+    )
+
+
+def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd):
+    """The recorded acceleration's in-band noise beyond its white level
+    (signals.coloured_noise_excess), with the low-passed force, displacement and sign(v) as
+    covariates: what the motion does beyond its harmonics shows in them as well, and the
+    sampled sign(v) folds into the band as the accelerometer's friction step does."""
+    fs = record.sample_rate_hz
+    span = slice(window.start, window.stop)
+    return coloured_noise_excess(
+        a_low[span], window.period_samples, cutoff, fs, white_sd,
+        band_gain=lambda frequency: lowpass_power_gain(frequency, cutoff, fs),
+        covariates=[zero_phase_lowpass(record.F, cutoff, fs)[span], u_f[span],
+                    zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]],
     )
 
 

@@ -2,7 +2,9 @@
 
 * u, displacement transducer: white noise of sd u_white plus quantisation to u_quantum;
 * a, accelerometer: white noise of sd a_white on the deck's true acceleration (oil-column
-  ringing and friction jolts included);
+  ringing and friction jolts included), plus, when a_drift > 0, a slow drift: an AR(1)
+  process of sd a_drift and correlation time a_drift_correlation_s (a servo or MEMS
+  accelerometer's 1/f noise and thermal drift, which sit at a slow test's own frequencies);
 * F, load cell: white noise of sd F_white plus a coloured part, an AR(1) process of
   stationary sd F_colored and correlation time F_correlation_s,
   x[n] = phi*x[n-1] + sqrt(1 - phi^2)*F_colored*e[n], phi = exp(-1/(fs*F_correlation_s)).
@@ -30,6 +32,8 @@ class SensorNoise:
     F_white: float = 300.0
     F_colored: float = 300.0
     F_correlation_s: float = 0.1
+    a_drift: float = 0.0
+    a_drift_correlation_s: float = 1.0
 
     def __post_init__(self):
         for name, value in asdict(self).items():
@@ -37,15 +41,17 @@ class SensorNoise:
                 raise ValueError(f"SensorNoise.{name} must be finite and non-negative, got {value!r}")
         if self.F_colored > 0.0 and self.F_correlation_s <= 0.0:
             raise ValueError("SensorNoise.F_correlation_s must be positive when F_colored > 0")
+        if self.a_drift > 0.0 and self.a_drift_correlation_s <= 0.0:
+            raise ValueError("SensorNoise.a_drift_correlation_s must be positive when a_drift > 0")
 
     @classmethod
     def off(cls) -> "SensorNoise":
         """No noise and no quantisation: the recorded signals are the simulated ones."""
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     @property
     def quiet(self) -> bool:
-        return not any((self.u_white, self.u_quantum, self.a_white, self.F_white, self.F_colored))
+        return not any((self.u_white, self.u_quantum, self.a_white, self.F_white, self.F_colored, self.a_drift))
 
 
 def resolve_noise(noise) -> SensorNoise:
@@ -89,4 +95,6 @@ def add_sensor_noise(
     a = true["a"] + noise.a_white * white[1]
     colored = ar1(rng, n, noise.F_colored, noise.F_correlation_s or 1.0, sample_rate_hz)
     force = true["F"] + noise.F_white * white[2] + colored
+    if noise.a_drift > 0.0:  # drawn last, so that series without it are unchanged
+        a = a + ar1(rng, n, noise.a_drift, noise.a_drift_correlation_s, sample_rate_hz)
     return {"u": u, "a": a, "F": force}

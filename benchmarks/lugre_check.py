@@ -1,0 +1,94 @@
+"""Fit and diagnose the second independent generator's series (benchmarks/lugre_generator.py):
+six clean series and, for each of six effects, a clear and a weak case.
+
+    PYTHONPATH=. .venv/bin/python benchmarks/lugre_check.py --dir /tmp/lugre \
+        --out benchmarks/results/lugre_check.json
+
+Series missing from --dir are generated first (20-40 s each). Per series: each population
+value's error and z = (mean - truth)/sd, whether the 90 % interval covers it, the diagnosis's
+selection and its three best-ranked effects. The generator scales a payload test's friction
+by (1 + m_payload g/(Me g)), leaving out the struts' hold-down force that the package (and the
+study) count in the normal load, so series with payload tests carry that disagreement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
+CASES = (
+    ("clean_0", 0, None, None, 200), ("clean_1", 1, None, None, 256), ("clean_2", 2, None, None, 500),
+    ("clean_3", 3, None, None, 1000), ("clean_4", 4, None, None, 256), ("clean_5", 5, None, None, 500),
+    ("stiction_strong", 10, "stiction", "strong", None), ("stiction_weak", 11, "stiction", "weak", None),
+    ("cubic_strong", 12, "nonlinear_stiffness", "strong", None), ("cubic_weak", 13, "nonlinear_stiffness", "weak", None),
+    ("hinge_strong", 14, "position_friction", "strong", None), ("hinge_weak", 15, "position_friction", "weak", None),
+    ("specimen_strong", 16, "specimen", "strong", None), ("specimen_weak", 17, "specimen", "weak", None),
+    ("delay_strong", 18, "channel_delay", "strong", None), ("delay_weak", 19, "channel_delay", "weak", None),
+    ("drift_strong", 20, "drift", "strong", None), ("drift_weak", 21, "drift", "weak", None),
+)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--dir", default="/tmp/bayes_sst_lugre")
+    parser.add_argument("--out", default=None)
+    parser.add_argument("--only", nargs="*", default=None, help="case names to run")
+    args = parser.parse_args()
+    sys.path.insert(0, str(HERE))
+    from lugre_generator import generate
+
+    from bayes_sst.diagnosis import diagnose
+    from bayes_sst.inference import fit
+    from bayes_sst.inference._summary import summarize
+    from bayes_sst.io import load_series
+
+    rows = []
+    for name, seed, effect, size, rate in CASES:
+        if args.only and name not in args.only:
+            continue
+        folder = os.path.join(args.dir, name)
+        if not os.path.exists(os.path.join(folder, "truth.json")):
+            options = dict(effect=effect, size=size) if effect else dict(rate=rate)
+            generate(seed, folder, name=name, verbose=False, **options)
+        truth = json.load(open(os.path.join(folder, "truth.json")))
+        series = load_series(folder)
+        started = time.perf_counter()
+        result = fit(series, seed=0)
+        parameters = summarize(result.tree)["parameters"]
+        row = {"case": name, "effect": truth.get("effect"), "effect_params": truth.get("effect_params"),
+               "fit_s": round(time.perf_counter() - started, 1), "mass_refit": bool(result.tree.attrs.get("mass_refit"))}
+        for key in NAMES:
+            p, value = parameters[key], truth[key]
+            row[key] = {"truth": value, "mean": p["mean"], "sd": p["sd"],
+                        "error": p["mean"] - value if key == "alpha" else (p["mean"] - value) / value,
+                        "z": (p["mean"] - value) / p["sd"], "covered": bool(p["q05"] <= value <= p["q95"])}
+        started = time.perf_counter()
+        diagnosis = diagnose(series).to_json()
+        row["diagnose_s"] = round(time.perf_counter() - started, 1)
+        row["selected"] = diagnosis["selected"]
+        row["top"] = [(r["name"], round(r["score"], 1), round(r["score_se"], 1)) for r in diagnosis["ranking"][:3]]
+        row["params"] = {r["name"]: r["params"] for r in diagnosis["ranking"] if r["name"] in diagnosis["selected"]}
+        rows.append(row)
+        cells = " ".join(f"{k} {row[k]['error'] * (1 if k == 'alpha' else 100):+.2f}{'' if k == 'alpha' else '%'}"
+                         f"({row[k]['z']:+.1f}{'' if row[k]['covered'] else '!'})" for k in NAMES)
+        print(f"{name:16s} {cells}  selected {row['selected']}", flush=True)
+    clean = [r for r in rows if r["effect"] is None]
+    with_effect = [r for r in rows if r["effect"] is not None]
+    for key in NAMES:
+        print(f"{key:6s} covered in {sum(r[key]['covered'] for r in rows)} of {len(rows)}")
+    print(f"clean series with nothing selected: {sum(not r['selected'] for r in clean)} of {len(clean)}")
+    print(f"effect series with the effect selected first: "
+          f"{sum(bool(r['selected']) and r['selected'][0] == r['effect'] for r in with_effect)} of {len(with_effect)}")
+    if args.out:
+        with open(args.out, "w") as handle:
+            json.dump({"command": " ".join(sys.argv), "rows": rows}, handle, indent=1, default=float)
+
+
+if __name__ == "__main__":
+    main()
