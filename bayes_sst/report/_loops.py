@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from bayes_sst.signals import fourier_columns
+
 LOOP_HARMONICS = 3
 
 
@@ -21,15 +23,6 @@ def rms_force(force: np.ndarray) -> np.ndarray:
 def peak_force(force: np.ndarray) -> np.ndarray:
     """max |F| over the last axis, N."""
     return np.max(np.abs(np.asarray(force, dtype=float)), axis=-1)
-
-
-def _fourier_design(t: np.ndarray, frequency_hz: float, harmonics: int) -> np.ndarray:
-    """(n, 2K+1) columns [1, cos(w t), sin(w t), ..., cos(K w t), sin(K w t)]."""
-    omega = 2.0 * np.pi * frequency_hz * np.asarray(t, dtype=float)
-    columns = [np.ones_like(omega)]
-    for k in range(1, harmonics + 1):
-        columns += [np.cos(k * omega), np.sin(k * omega)]
-    return np.column_stack(columns)
 
 
 def loop_energy(t, force, displacement, frequency_hz: float, *, harmonics: int = LOOP_HARMONICS) -> np.ndarray:
@@ -54,7 +47,7 @@ def loop_energy(t, force, displacement, frequency_hz: float, *, harmonics: int =
     on the deck, which dissipates it.
     """
     t = np.asarray(t, dtype=float)
-    design = _fourier_design(t, frequency_hz, harmonics)
+    design = fourier_columns(2.0 * np.pi * frequency_hz * np.asarray(t, dtype=float), harmonics)
     if design.shape[0] < design.shape[1]:
         raise ValueError(
             f"{design.shape[0]} samples cannot resolve {harmonics} harmonics of {frequency_hz:g} Hz; "

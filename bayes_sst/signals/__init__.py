@@ -1,7 +1,7 @@
 """Signals: filtering, derivatives, steady-state cycles and the likelihood's sample set."""
 
 from bayes_sst.signals._checks import accelerometer_disagreement
-from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
+from bayes_sst.signals._cycles import CycleWindow, fourier_columns, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import acceleration_from_velocity, derived_acceleration, lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._prepare import (
     MIN_STEADY_CYCLES,
@@ -25,6 +25,7 @@ __all__ = [
     "complementary_velocity",
     "derived_acceleration",
     "friction_load",
+    "fourier_columns",
     "fundamental_phase",
     "lowpass_sos",
     "periodic_component",

@@ -21,6 +21,16 @@ class CycleWindow(NamedTuple):
     amplitude: float
 
 
+def fourier_columns(phase, harmonics: int) -> np.ndarray:
+    """(n, 2K+1) columns [1, cos(phi), sin(phi), ..., cos(K phi), sin(K phi)] at the fundamental's
+    phase phi (radians, n samples)."""
+    phase = np.asarray(phase, dtype=float)
+    columns = [np.ones_like(phase)]
+    for k in range(1, harmonics + 1):
+        columns += [np.cos(k * phase), np.sin(k * phase)]
+    return np.column_stack(columns)
+
+
 def fundamental_phase(x, t, frequency_hz: float) -> tuple[float, float]:
     """Amplitude A and phase phi of the best fit x ~ A*sin(2*pi*f*t + phi) + offset."""
     omega = 2.0 * np.pi * frequency_hz

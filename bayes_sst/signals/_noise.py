@@ -6,6 +6,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from bayes_sst.signals._cycles import fourier_columns
+
 # The errors-in-variables correction for the accelerometer's noise (the fit's
 # inference._statistics.acceleration_noise_correction and the diagnosis's engine):
 # draws of the noise through the signal treatment per test; the correction's own Monte Carlo
@@ -122,14 +124,10 @@ def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rat
     harmonics = int(np.floor(cutoff_hz / frequency + 1e-9))
     if n < 24 * (harmonics + 1):
         return None
-    phase = 2.0 * np.pi * np.arange(n) / period_samples
-    harmonic_columns = [np.ones(n)]
-    for k in range(1, harmonics + 1):
-        harmonic_columns += [np.cos(k * phase), np.sin(k * phase)]
-    position = np.linspace(-1.0, 1.0, n)
-    columns = [c * p for p in (np.ones(n), position, 1.5 * position**2 - 0.5) for c in harmonic_columns]
-    columns += [np.asarray(c, dtype=float) for c in covariates]
-    design = np.column_stack(columns)
+    harmonic = fourier_columns(2.0 * np.pi * np.arange(n) / period_samples, harmonics)
+    position = np.linspace(-1.0, 1.0, n)[:, None]
+    design = np.column_stack([harmonic, harmonic * position, harmonic * (1.5 * position**2 - 0.5)]
+                             + [np.asarray(c, dtype=float) for c in covariates])
     design = design / np.maximum(np.sqrt(np.mean(design**2, axis=0)), 1e-300)
     # normal equations (the columns are scaled and far from collinear; an SVD per test was 80 %
     # of the signal treatment's time on a 200-test series)

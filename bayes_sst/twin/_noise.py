@@ -47,7 +47,7 @@ class SensorNoise:
     @classmethod
     def off(cls) -> "SensorNoise":
         """No noise and no quantisation: the recorded signals are the simulated ones."""
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return cls(**dict.fromkeys(asdict(cls()), 0.0))
 
     @property
     def quiet(self) -> bool:
