@@ -50,6 +50,7 @@ def _cmd_fit(args) -> int:
         draws=args.draws,
         warmup=args.warmup,
         seed=args.seed,
+        extensions=args.extensions,
         prior=priors,
         signals=options,
         progress=_progress,
@@ -110,6 +111,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chains", type=int, default=4)
     p.add_argument("--draws", type=int, default=500, help="draws per chain after warm-up")
     p.add_argument("--warmup", type=int, default=300, help="warm-up iterations per chain")
+    p.add_argument("--extensions", type=int, default=2,
+                   help="times the chains go on for --draws more while R-hat or bulk ESS misses its limit (0: never)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--prior", choices=("generic", "physics"), default="generic",
                    help="generic weak priors, or centred by the series' table description")

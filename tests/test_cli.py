@@ -36,11 +36,16 @@ def test_simulate_fit_summary_round_trip(tmp_path, capsys):
     assert manifest["format"] == "sst-series/1" and len(manifest["tests"]) == 20
 
     run = tmp_path / "run"
-    assert main(["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60"]) == 0
+    assert main(["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60",
+                 "--extensions", "1"]) == 0
     printed = capsys.readouterr().out
     assert "published" in printed and "Me" in printed
     summary = json.loads((run / "summary.json").read_text())
     assert summary["n_tests"] == 20
+    # 2 x 60 draws are far from a bulk ESS of 400: the chains went on once for 60 more
+    from bayes_sst.io import read_run_tree
+
+    assert json.loads(read_run_tree(run).attrs["sampler"])["draws"] == 120
     assert (run / "posterior.nc").is_file() and (run / "summary.txt").is_file()
 
     assert main(["summary", str(run)]) == 0
@@ -80,7 +85,8 @@ def test_fit_shared_option_fixes_the_mass_between_tests(tmp_path):
     series = tmp_path / "series"
     assert main(["simulate", "--out", str(series), "--seed", "4"]) == 0
     run = tmp_path / "run"
-    argv = ["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60", "--shared", "Me"]
+    argv = ["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60", "--shared", "Me",
+            "--extensions", "0"]
     assert main(argv) == 0
     summary = json.loads((run / "summary.json").read_text())
     assert summary["between_test_spread"]["Me"]["relative_sd_q95"] == 0.0

@@ -72,16 +72,36 @@ def test_sampler_checks_and_datatree_groups(noisy_fit):
     assert summary["max_r_hat"] <= 1.01
     assert summary["min_ess_bulk"] >= 400
     assert summary["converged"] and summary["warnings"] == []
+    # converged within the default draws: not extended
+    assert json.loads(tree.attrs["sampler"])["draws"] == 500
     assert tree["log_likelihood"]["F"].dims == ("chain", "draw", "test")
 
 
 def test_summary_flags_an_unconverged_run_loudly():
     series = simulate("sst-paper", seed=2, plan=default_plan("sst-paper")[:4])
-    result = fit(series, chains=2, draws=15, warmup=15, seed=0)
+    result = fit(series, chains=2, draws=15, warmup=15, seed=0, extensions=0)
     summary = summarize(result.tree)
     assert not summary["converged"]
     assert any("ESS" in w for w in summary["warnings"])
     assert "WARNING" in format_summary(summary)
+
+
+def test_an_unconverged_run_goes_on_from_where_its_chains_stopped():
+    """extensions: while R-hat or the bulk ESS misses its limit the chains draw `draws` more;
+    the first draws are those of the run without extension (the chains continue, they do not
+    restart), and the tree's sampler settings give the total."""
+    series = simulate("sst-paper", seed=2, plan=default_plan("sst-paper")[:4])
+    short = fit(series, chains=2, draws=15, warmup=15, seed=0, extensions=0)
+    longer = fit(series, chains=2, draws=15, warmup=15, seed=0, extensions=2)
+    assert json.loads(short.tree.attrs["sampler"])["draws"] == 15
+    assert json.loads(longer.tree.attrs["sampler"])["draws"] == 45  # 60 draws cannot reach ESS 400
+    assert longer.posterior.sizes["draw"] == 45
+    assert np.array_equal(longer.posterior["alpha"].values[:, :15], short.posterior["alpha"].values)
+    assert not np.array_equal(longer.posterior["alpha"].values[:, 15:30], short.posterior["alpha"].values)
+    with pytest.raises(ValueError, match="chains must be a whole number of at least 1"):
+        fit(series, chains=0)
+    with pytest.raises(ValueError, match="extensions"):
+        fit(series, extensions=-1)
 
 
 def test_run_folder_round_trip(noisy_fit, tmp_path):
@@ -233,13 +253,13 @@ def test_fits_release_their_compiled_programs():
             return sum(1 for _ in fh)
 
     series = simulate("sst-paper", seed=2, plan=default_plan("sst-paper")[:4])
-    fit(series, chains=2, draws=50, warmup=50, seed=0)
+    fit(series, chains=2, draws=50, warmup=50, seed=0, extensions=0)
     before = mappings()
     for seed in (1, 2):
-        fit(series, chains=2, draws=50, warmup=50, seed=seed)
+        fit(series, chains=2, draws=50, warmup=50, seed=seed, extensions=0)
     assert (mappings() - before) / 2 < 200
     kept = mappings()
-    fit(series, chains=2, draws=50, warmup=50, seed=3, release_compiled=False)
+    fit(series, chains=2, draws=50, warmup=50, seed=3, release_compiled=False, extensions=0)
     assert mappings() - kept > 400
 
 
@@ -253,7 +273,7 @@ def test_a_second_series_of_the_same_size_reuses_the_compiled_sampler(tmp_path):
         "from bayes_sst.inference import fit\n"
         "from bayes_sst.twin import default_plan, simulate\n"
         "series = simulate('sst-paper', seed=int(sys.argv[1]), spread=0.02, plan=default_plan('sst-paper')[:6])\n"
-        "fit(series, chains=2, draws=50, warmup=50)\n"
+        "fit(series, chains=2, draws=50, warmup=50, extensions=0)\n"
     )
     env = dict(os.environ, BAYES_SST_CACHE=str(tmp_path / "cache"))
     env.pop("JAX_USE_SIMPLIFIED_JAXPR_CONSTANTS", None)

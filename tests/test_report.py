@@ -49,7 +49,7 @@ def runs():
 
     series = load_series(root / "series")
     good = _write_fit(series, root / "good", chains=2, draws=600, warmup=400, seed=1)
-    bad = _write_fit(series, root / "bad", chains=2, draws=15, warmup=15, seed=2)
+    bad = _write_fit(series, root / "bad", chains=2, draws=15, warmup=15, seed=2, extensions=0)
     report = build_report(good, draws=300, seed=4)
     write_report(report, root / "report")
     yield {"root": root, "series": series, "good": good, "bad": bad, "report": report}

@@ -290,3 +290,15 @@ def test_importing_the_twin_does_not_import_matplotlib():
     code = "import sys, bayes_sst.twin; print('matplotlib' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_a_softening_cubic_is_accepted_until_the_spring_turns_negative_within_the_stroke():
+    from dataclasses import replace
+
+    truth = PRESETS["sst-paper"]
+    limit = -truth.Ke / (3.0 * (truth.stroke / truth.strut_h) ** 2)  # Ke + 3 K'e (stroke/h)^2 = 0
+    assert replace(truth, cubic_stiffness=0.9 * limit).cubic_stiffness < 0
+    with pytest.raises(ValueError, match="negative stiffness within the stroke"):
+        replace(truth, cubic_stiffness=1.1 * limit)
+    with pytest.raises(ValueError, match="specimen_mass must not be negative"):
+        replace(truth, specimen_mass=-1.0)

@@ -240,12 +240,11 @@ def _harmonic_origin(u, t, frequency_hz: float, near: float) -> float:
     (and an offset) over the samples given; u1 = s*sin(w t) + c*cos(w t) = R*sin(w t + phi)
     crosses zero going up where w t + phi = 2*pi*n.
     """
+    from bayes_sst.signals import fourier_columns
+
     w = 2.0 * np.pi * frequency_hz
-    columns = [np.ones_like(t)]
-    for k in range(1, ORIGIN_HARMONICS + 1):
-        columns += [np.sin(k * w * t), np.cos(k * w * t)]
-    coef, *_ = np.linalg.lstsq(np.column_stack(columns), u, rcond=None)
-    phase = float(np.arctan2(coef[2], coef[1]))
+    (_, c, s, *_), *_ = np.linalg.lstsq(fourier_columns(w * t, ORIGIN_HARMONICS), u, rcond=None)
+    phase = float(np.arctan2(c, s))
     n = np.round((w * near + phase) / (2.0 * np.pi))
     return float((2.0 * np.pi * n - phase) / w)
 

@@ -52,7 +52,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, REVERSAL_SIGNALS, STROKE_SIGNALS, effect_data
+from bayes_sst.diagnosis._data import (DIAGNOSIS_SIGNALS, REVERSAL_SIGNALS, STROKE_SIGNALS, effect_data,
+                                      strut_cubic_sign)
 from bayes_sst.diagnosis._engine import BASE_COEFFICIENTS, ModelFit, Scorer
 from bayes_sst.diagnosis._oil import oil_column_check
 from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
@@ -588,6 +589,13 @@ def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
     return floors, float(np.sqrt(np.sum(n * floors**2) / n.sum()))
 
 
+def _scale(series: Series, tests: Sequence[EffectData]) -> dict[str, float]:
+    """What the effects' priors and bounds read besides the base fit: the struts' height, the
+    largest stroke, and the sign of the gas struts' cubic stiffness."""
+    return {"strut_h": tests[0].strut_h, "stroke": max(float(np.max(np.abs(t.u))) for t in tests),
+            "cubic_sign": strut_cubic_sign(series)}
+
+
 def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions, view: str, say,
                timings, given: Sequence = ()) -> tuple[dict[str, Any], list, dict[str, Any], Scorer]:
     """Score `effects` on another view of the series (STROKE_SIGNALS or REVERSAL_SIGNALS), against
@@ -595,8 +603,7 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
     summary (for diagnosis.json), the selected (effect, setting) terms, the view's tests and
     base model (for the page's figures) and its scorer (to refit the view)."""
     tests = effect_data(series, options)
-    stroke = max(float(np.max(np.abs(t.u))) for t in tests)
-    scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": stroke})
+    scorer = Scorer(tests, _scale(series, tests))
     say(f"{view} view: screening {', '.join(e.name for e in effects)}"
         + (f" with {', '.join(e.name for e, _ in given)} in the model" if given else "") + " ...")
     base = fit_base(scorer)
@@ -664,8 +671,7 @@ def diagnose(
     notes = [note for t in tests for note in t.notes]
     for note in notes:
         say(f"!! {note}")
-    max_stroke = max(float(np.max(np.abs(t.u))) for t in tests)
-    scorer = Scorer(tests, {"strut_h": tests[0].strut_h, "stroke": max_stroke})
+    scorer = Scorer(tests, _scale(series, tests))
     alpha_start = None
     if run_tree is not None:
         alpha_start = float(run_tree["posterior"]["alpha"].median())

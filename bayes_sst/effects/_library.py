@@ -76,6 +76,11 @@ class Effect:
         the setting's cell, so that the grid posterior keeps the stated prior."""
         return 1.0
 
+    def coefficient_signs(self, base: Mapping[str, float]) -> dict[str, float]:
+        """The physical sign (+1 or -1) of each linear coefficient that has one: a fit whose
+        coefficient has the other sign leaves the effect at its bound (the base model)."""
+        return {name: 1.0 for name in self.positive}
+
     def columns(self, test: EffectData, setting: Mapping[str, float], alpha: float,
                 base: Mapping[str, float] | None = None) -> np.ndarray:
         """(k, n_kept) regressors added to the base design; (0, n) for a response-only effect.
@@ -161,10 +166,16 @@ class NonlinearStiffness(Effect):
         F_k3 = K'e*(u/h)^2*u,   h the strut height; the gas strut gives K'e = 0.5*(gamma*h/l0 - 1)*Ke.
 
     Prior: K'e ~ N(0, (3*Ke)^2). The gas law gives K'e/Ke = 0.5*(gamma*h/l0 - 1): 0.55 for the
-    SST's struts, up to about 3 for a short gas column (h/l0 = 5, gamma = 1.4); the struts'
-    inclination adds a softening -Ke/2. With sd Ke the prior pulled a cubic of three times the
-    SST's gas value 8 % toward zero, and one of 5*Ke (soft struts, an independent generator)
+    SST's struts, up to about 3 for a short gas column (h/l0 = 5, gamma = 1.4); the -1 is the
+    struts' inclination, a softening -Ke/2. With sd Ke the prior pulled a cubic of three times
+    the SST's gas value 8 % toward zero, and one of 5*Ke (soft struts, an independent generator)
     came out 43 % low (13 % with sd 3*Ke).
+
+    Sign: K'e takes the sign of gamma*h/l0 - 1 that the table description gives (base
+    "cubic_sign", set by the diagnosis from the series; hardening when the description lacks
+    gamma or l0); a fit of the other sign is at its bound. Why: weak stiction with a LuGre
+    friction law (an independently written generator, Fs/Fk = 1.32 at 5 mm/s, 200 Hz) read as
+    K'e = -8.6e5 +- 2.0e5 N/m on a table whose struts harden, and was selected in its place.
     """
 
     name: str = "nonlinear_stiffness"
@@ -173,6 +184,9 @@ class NonlinearStiffness(Effect):
     parameters: tuple[Parameter, ...] = (Parameter("cubic_stiffness", "N/m", "N(0, (3 Ke)^2)"),)
     coefficients: tuple[str, ...] = ("cubic_stiffness",)
     z_selectable: bool = True
+
+    def coefficient_signs(self, base):
+        return {"cubic_stiffness": float(base.get("cubic_sign", 1.0))}
 
     def columns(self, test, setting, alpha, base=None):
         u = test.u_full

@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 from bayes_sst.reference import DISPLAY_UNITS
+from bayes_sst.inference._mixing import rank_rhat_and_bulk_ess
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 
@@ -54,6 +55,48 @@ def unphysical_coefficients(parameters: dict) -> list[str]:
     return [name for name in COEFFICIENTS if parameters[name]["q05"] <= 0.0]
 
 
+def _mixing(tree) -> dict:
+    """Rank-normalised R-hat and bulk ESS of the population values and the varying between-test
+    sds, and the worst of them and of the per-test noise parameters."""
+    from arviz_stats import ess, rhat
+
+    posterior = tree["posterior"].to_dataset()
+    # a shared coefficient's between-test sd is identically 0: no R-hat or ESS to check
+    between = posterior["between_test_sd"]
+    varying = [k for k in range(between.sizes["coefficient"]) if np.any(between.isel(coefficient=k).values != 0.0)]
+    checked = posterior[list(POPULATION)].assign(between_test_sd=between.isel(coefficient=varying))
+    r_hat = rhat(checked)
+    ess_bulk = ess(checked, method="bulk")
+    # the per-test noise parameters, 2J variables, in one vectorised pass (ArviZ's estimators;
+    # its per-variable loop took 1-3 s at 200 tests)
+    nuisance = np.concatenate([posterior[name].transpose("chain", "draw", ...).values.reshape(
+        posterior.sizes["chain"], posterior.sizes["draw"], -1) for name in ("phi", "sigma")], axis=-1)
+    nuisance_rhat, nuisance_ess = rank_rhat_and_bulk_ess(nuisance)
+    return {
+        "r_hat": r_hat,
+        "ess_bulk": ess_bulk,
+        "worst_rhat": max(float(r_hat[v].max()) for v in r_hat.data_vars),
+        "least_ess": min(float(ess_bulk[v].min()) for v in ess_bulk.data_vars),
+        "worst_nuisance_rhat": float(np.max(nuisance_rhat)),
+        "least_nuisance_ess": float(np.min(nuisance_ess)),
+    }
+
+
+def short_of_limits(tree) -> str | None:
+    """What more draws could fix (R-hat or bulk ESS short of the limits, population or per
+    test), in words, or None. Divergences and the tree depth are not among them: they need a
+    longer warm-up or a different model, not a longer chain."""
+    m = _mixing(tree)
+    short = []
+    if m["worst_rhat"] > RHAT_LIMIT:
+        short.append(f"R-hat {m['worst_rhat']:.3f}")
+    if m["least_ess"] < ESS_LIMIT:
+        short.append(f"bulk ESS {m['least_ess']:.0f}")
+    if m["worst_nuisance_rhat"] > NUISANCE_RHAT_LIMIT or m["least_nuisance_ess"] < NUISANCE_ESS_LIMIT:
+        short.append(f"per-test noise R-hat {m['worst_nuisance_rhat']:.3f}, ESS {m['least_nuisance_ess']:.0f}")
+    return ", ".join(short) or None
+
+
 def summarize(tree, *, seconds: float | None = None) -> dict:
     """summary.json content: population parameters (SI), convergence checks and warnings.
 
@@ -61,16 +104,12 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     tree.attrs["priors"] under "priors" when present, so that format_summary can say how
     far the data moved each physics-based centre.
     """
-    from arviz_stats import ess, rhat
+    from arviz_stats import ess
 
     posterior = tree["posterior"].to_dataset()
     stats = tree["sample_stats"].to_dataset()
-    # a shared coefficient's between-test sd is identically 0: no R-hat or ESS to check
-    between = posterior["between_test_sd"]
-    varying = [k for k in range(between.sizes["coefficient"]) if np.any(between.isel(coefficient=k).values != 0.0)]
-    checked = posterior[list(POPULATION)].assign(between_test_sd=between.isel(coefficient=varying))
-    r_hat = rhat(checked)
-    ess_bulk = ess(checked, method="bulk")
+    mixing = _mixing(tree)
+    r_hat, ess_bulk = mixing["r_hat"], mixing["ess_bulk"]
     ess_tail = ess(tree, var_names=list(POPULATION), method="tail")
     parameters = {}
     for name in POPULATION:
@@ -95,12 +134,8 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
             "relative_sd_q95": float(np.quantile(relative, 0.95)),
         }
     divergences = int(stats["diverging"].values.sum())
-    worst_rhat = max(float(r_hat[v].max()) for v in r_hat.data_vars)
-    least_ess = min(float(ess_bulk[v].min()) for v in ess_bulk.data_vars)
-    nuisance_rhat = rhat(tree, var_names=["phi", "sigma"])
-    nuisance_ess = ess(tree, var_names=["phi", "sigma"], method="bulk")
-    worst_nuisance_rhat = max(float(nuisance_rhat[v].max()) for v in nuisance_rhat.data_vars)
-    least_nuisance_ess = min(float(nuisance_ess[v].min()) for v in nuisance_ess.data_vars)
+    worst_rhat, least_ess = mixing["worst_rhat"], mixing["least_ess"]
+    worst_nuisance_rhat, least_nuisance_ess = mixing["worst_nuisance_rhat"], mixing["least_nuisance_ess"]
     saturated = int(stats["reached_max_treedepth"].values.sum()) if "reached_max_treedepth" in stats else 0
     warnings = []
     if divergences:

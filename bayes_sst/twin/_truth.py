@@ -50,7 +50,8 @@ class TableTruth:
     oil column's. The others:
 
     * cubic_stiffness K'e (N/m): strut spring Ke*u + K'e*(u/h)^2*u, h = strut_h
-      (physics.strut_cubic_stiffness gives the gas strut's value);
+      (physics.strut_cubic_stiffness gives the gas strut's value; negative, softening, for a
+      gas column longer than gamma*h, as long as the spring stays stiffening within the stroke);
     * position_friction Fp (N): hinge friction Fp*(u/h)^2 added to the friction level, so the
       force Fp*(u/h)^2*sign(v);
     * specimen_mass m_s (kg), specimen_frequency f_s (Hz), specimen_damping zeta_s (-): a flexible
@@ -102,8 +103,12 @@ class TableTruth:
         for name, value in asdict(self).items():
             if not math.isfinite(value):
                 raise ValueError(f"TableTruth.{name} must be finite, got {value!r}")
-            if value < 0.0:
+            # a gas column longer than gamma*h softens the struts: K'e < 0 (class docstring)
+            if value < 0.0 and name != "cubic_stiffness":
                 raise ValueError(f"TableTruth.{name} must not be negative, got {value!r}")
+        if self.Ke + 3.0 * self.cubic_stiffness * (self.stroke / self.strut_h) ** 2 <= 0.0:
+            raise ValueError(f"TableTruth.cubic_stiffness {self.cubic_stiffness!r} N/m softens the struts to a "
+                             f"negative stiffness within the stroke (Ke + 3*K'e*(stroke/h)^2 <= 0)")
         for name in ("Me", "deck_mass", "bulk_modulus", "piston_area", "oil_volume",
                      "valve_time_constant", "stribeck_velocity", "stroke", "specimen_frequency"):
             if getattr(self, name) <= 0.0:
