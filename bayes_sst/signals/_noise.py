@@ -91,6 +91,27 @@ class NoiseSpectrum(NamedTuple):
         return np.fft.irfft(spectrum, n=length, axis=-1)
 
 
+def readable_bins(n: int, period_samples: float, cutoff_hz: float, sample_rate_hz: float, band_gain):
+    """What coloured_noise_excess reads of a record of n samples: (harmonics up to the cut-off,
+    periodogram bins, the low-pass's power gain there, the bins read: in band, away from the
+    harmonics and half-harmonics), or None when fewer than 4 bins are left (a record of 6 or
+    fewer cycles, or too short for its harmonics' fit). It depends on the record's length and
+    rates only, so a caller can skip preparing what the estimate would read."""
+    frequency = sample_rate_hz / period_samples
+    harmonics = int(np.floor(cutoff_hz / frequency + 1e-9))
+    if n < 24 * (harmonics + 1):
+        return None
+    bins = np.arange(n // 2 + 1)
+    gain = np.asarray(band_gain(bins * sample_rate_hz / n), dtype=float)
+    cycles = n / period_samples
+    harmonic_bins = np.arange(0, harmonics + 1) * cycles
+    offset = np.min(np.abs(bins[:, None] - harmonic_bins[None, :]), axis=1)
+    # half-harmonics too: a period that is close to a whole number of half samples samples
+    # the steps of every other cycle alike, which puts aliased lines at (k + 1/2) f
+    valid = (gain >= 0.5) & (offset > HARMONIC_GUARD_BINS) & (np.abs(offset - 0.5 * cycles) > 0.5)
+    return None if valid.sum() < 4 else (harmonics, bins, gain, valid)
+
+
 def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rate_hz: float,
                           white_sd: float, band_gain, covariates=()) -> NoiseSpectrum | None:
     """The noise of a periodic record below cutoff_hz that its white level does not account
@@ -120,10 +141,10 @@ def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rat
     """
     x = np.asarray(x, dtype=float)
     n = x.size
-    frequency = sample_rate_hz / period_samples
-    harmonics = int(np.floor(cutoff_hz / frequency + 1e-9))
-    if n < 24 * (harmonics + 1):
+    read = readable_bins(n, period_samples, cutoff_hz, sample_rate_hz, band_gain)
+    if read is None or white_sd <= 0.0:
         return None
+    harmonics, bins, gain, valid = read
     harmonic = fourier_columns(2.0 * np.pi * np.arange(n) / period_samples, harmonics)
     position = np.linspace(-1.0, 1.0, n)[:, None]
     design = np.column_stack([harmonic, harmonic * position, harmonic * (1.5 * position**2 - 0.5)]
@@ -136,16 +157,6 @@ def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rat
     residual = x - design @ np.linalg.solve(gram, design.T @ x)
     periodogram = np.abs(np.fft.rfft(residual)) ** 2 / n
     step = sample_rate_hz / n
-    bins = np.arange(periodogram.size)
-    gain = np.asarray(band_gain(bins * step), dtype=float)
-    cycles = n / period_samples
-    harmonic_bins = np.arange(0, harmonics + 1) * cycles
-    offset = np.min(np.abs(bins[:, None] - harmonic_bins[None, :]), axis=1)
-    # half-harmonics too: a period that is close to a whole number of half samples samples
-    # the steps of every other cycle alike, which puts aliased lines at (k + 1/2) f
-    valid = (gain >= 0.5) & (offset > HARMONIC_GUARD_BINS) & (np.abs(offset - 0.5 * cycles) > 0.5)
-    if valid.sum() < 4 or white_sd <= 0.0:
-        return None
     own = periodogram / np.maximum(gain, 1e-12)
     white = white_sd**2
     # medians, so that the odd aliased line the covariates miss does not count as noise: a

@@ -70,7 +70,7 @@ from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import lowpass_power_gain, time_derivative, zero_phase_lowpass
-from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
+from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd, readable_bins
 
 MIN_STEADY_CYCLES = 3
 
@@ -488,9 +488,15 @@ def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd):
     sampled sign(v) folds into the band as the accelerometer's friction step does."""
     fs = record.sample_rate_hz
     span = slice(window.start, window.stop)
+
+    def band_gain(frequency):
+        return lowpass_power_gain(frequency, cutoff, fs)
+
+    # the covariates' low-passes are most of the cost: skipped where nothing can be read
+    if readable_bins(window.stop - window.start, window.period_samples, cutoff, fs, band_gain) is None:
+        return None
     return coloured_noise_excess(
-        a_low[span], window.period_samples, cutoff, fs, white_sd,
-        band_gain=lambda frequency: lowpass_power_gain(frequency, cutoff, fs),
+        a_low[span], window.period_samples, cutoff, fs, white_sd, band_gain=band_gain,
         covariates=[zero_phase_lowpass(record.F, cutoff, fs)[span], u_f[span],
                     zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]],
     )
