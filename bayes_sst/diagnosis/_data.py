@@ -18,7 +18,7 @@ import zlib
 import numpy as np
 
 from bayes_sst.effects import EffectData
-from bayes_sst.io import Series
+from bayes_sst.io import Series, table_number
 from bayes_sst.physics import strut_cubic_stiffness
 from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_series, without_steady_offsets,
                                zero_phase_lowpass)
@@ -87,12 +87,8 @@ def strut_cubic_sign(series: Series) -> float:
     """The sign of K'e = 0.5*(gamma*h/l0 - 1)*Ke that the table description's gas struts give
     (+1 hardening, -1 softening); +1 when gamma, h or l0 is missing: a gas column shorter than
     gamma*h, as in the study's struts, hardens."""
-    strut = (series.table or {}).get("strut") or {}
-    try:
-        gamma, h, l0 = (float(strut[key]) for key in ("gamma", "h_m", "l0_m"))
-    except (KeyError, TypeError, ValueError):
-        return 1.0
-    if not all(math.isfinite(x) and x > 0 for x in (gamma, h, l0)):
+    gamma, h, l0 = (table_number(series.table, "strut", key) for key in ("gamma", "h_m", "l0_m"))
+    if gamma is None or h is None or l0 is None:
         return 1.0
     return -1.0 if strut_cubic_stiffness(1.0, gamma, h, l0) < 0 else 1.0
 

@@ -16,7 +16,7 @@ Estimators, for each variable, with the chains split in halves (2C chains of N =
     ESS = S/tau,   tau = -1 + 2 sum_{m < m*} min_{m' <= m} P_m' + rho_(2m*)^+,   P_m = rho_2m + rho_(2m+1)
 
 with m* where Geyer's initial positive sequence of pair sums P_m ends, exactly as ArviZ
-truncates it (see bulk_ess); tau is at least 1/log10(S).
+truncates it (see _ess); tau is at least 1/log10(S).
 """
 
 from __future__ import annotations

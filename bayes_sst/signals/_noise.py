@@ -91,12 +91,12 @@ class NoiseSpectrum(NamedTuple):
         return np.fft.irfft(spectrum, n=length, axis=-1)
 
 
-def readable_bins(n: int, period_samples: float, cutoff_hz: float, sample_rate_hz: float, band_gain):
+def _readable_bins(n: int, period_samples: float, cutoff_hz: float, sample_rate_hz: float, band_gain):
     """What coloured_noise_excess reads of a record of n samples: (harmonics up to the cut-off,
     periodogram bins, the low-pass's power gain there, the bins read: in band, away from the
     harmonics and half-harmonics), or None when fewer than 4 bins are left (a record of 6 or
     fewer cycles, or too short for its harmonics' fit). It depends on the record's length and
-    rates only, so a caller can skip preparing what the estimate would read."""
+    rates only."""
     frequency = sample_rate_hz / period_samples
     harmonics = int(np.floor(cutoff_hz / frequency + 1e-9))
     if n < 24 * (harmonics + 1):
@@ -122,7 +122,8 @@ def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rat
     its harmonics, r = x - c0(t) - sum_k (c_k(t) cos k*phi + s_k(t) sin k*phi) (least squares,
     k*f <= fc, each c(t) a quadratic in time to take up a slow drift of the motion's amplitude
     and phase), is noise, but for what the motion itself does beyond its harmonics: the
-    covariates (for the accelerometer, the low-passed force and displacement, and the sampled
+    covariates (a sequence of arrays, or a function giving one, called only when some bin can
+    be read; for the accelerometer, the low-passed force and displacement, and the sampled
     sign(v), which aliases as its friction step does: sampled without an anti-alias filter, a
     step folds its harmonics above the Nyquist frequency back into the band, at frequencies
     that are not the test's harmonics) are columns of the fit too. Its periodogram I_k = |rfft(r)|^2/N divided
@@ -141,10 +142,12 @@ def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rat
     """
     x = np.asarray(x, dtype=float)
     n = x.size
-    read = readable_bins(n, period_samples, cutoff_hz, sample_rate_hz, band_gain)
+    read = _readable_bins(n, period_samples, cutoff_hz, sample_rate_hz, band_gain)
     if read is None or white_sd <= 0.0:
         return None
     harmonics, bins, gain, valid = read
+    if callable(covariates):  # built only now, when something can be read
+        covariates = covariates()
     harmonic = fourier_columns(2.0 * np.pi * np.arange(n) / period_samples, harmonics)
     position = np.linspace(-1.0, 1.0, n)[:, None]
     design = np.column_stack([harmonic, harmonic * position, harmonic * (1.5 * position**2 - 0.5)]

@@ -70,7 +70,7 @@ from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
 from bayes_sst.signals._filters import lowpass_power_gain, time_derivative, zero_phase_lowpass
-from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd, readable_bins
+from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
 
@@ -445,8 +445,8 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         # less the motion's band, whose curvature shows in second differences at high f/fs
         above_band = (np.asarray(measured_a, dtype=float) - a_low)[window.start : window.stop]
         noise_sd = mid_stroke_noise_sd(above_band, speed)
-    if measured_a is not None and options.accelerometer_noise and options.coloured_accelerometer_noise:
-        noise_excess = _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, noise_sd)
+        if options.coloured_accelerometer_noise:
+            noise_excess = _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, noise_sd)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
     u_model = zero_phase_lowpass(record.u * weight, cutoff, fs) if weighted else u_f
@@ -488,17 +488,12 @@ def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd):
     sampled sign(v) folds into the band as the accelerometer's friction step does."""
     fs = record.sample_rate_hz
     span = slice(window.start, window.stop)
-
-    def band_gain(frequency):
-        return lowpass_power_gain(frequency, cutoff, fs)
-
-    # the covariates' low-passes are most of the cost: skipped where nothing can be read
-    if readable_bins(window.stop - window.start, window.period_samples, cutoff, fs, band_gain) is None:
-        return None
     return coloured_noise_excess(
-        a_low[span], window.period_samples, cutoff, fs, white_sd, band_gain=band_gain,
-        covariates=[zero_phase_lowpass(record.F, cutoff, fs)[span], u_f[span],
-                    zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]],
+        a_low[span], window.period_samples, cutoff, fs, white_sd,
+        band_gain=lambda frequency: lowpass_power_gain(frequency, cutoff, fs),
+        # their low-passes are most of the cost, skipped where nothing can be read (6 cycles or fewer)
+        covariates=lambda: [zero_phase_lowpass(record.F, cutoff, fs)[span], u_f[span],
+                            zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]],
     )
 
 
