@@ -254,10 +254,12 @@ def test_population_is_right_when_the_recorded_force_is_nearly_noise_free():
     assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05
 
 
-def test_numpy_potential_of_the_start_equals_numpyros_potential_energy():
+@pytest.mark.parametrize("spread_prior", [(0.03, 1.0), ((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5))])
+def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_prior):
     """The sampler's start carries a potential computed in numpy (inference._model); NumPyro's
     own potential_energy of the same model must give the same number, at the start and away
-    from it, with every site's prior and Jacobian."""
+    from it, with every site's prior and Jacobian; with one spread prior for all coefficients
+    and with a prior of their own (fit's mass refit holds Me's)."""
     from numpyro.infer.util import potential_energy as numpyro_potential, unconstrain_fn
 
     from bayes_sst.inference._model import ScaledPriors, potential_energy, table_force_model, unconstrained_start
@@ -268,8 +270,8 @@ def test_numpy_potential_of_the_start_equals_numpyros_potential_energy():
     priors = ScaledPriors(
         mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
         alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
-        spread_median=0.03, spread_log_sd=1.0, noise_loc=0.2, noise_log_sd=1.5,
-        varying=jnp.array([1.0, 0.0, 1.0, 1.0]),
+        spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
+        noise_loc=0.2, noise_log_sd=1.5, varying=jnp.array([1.0, 0.0, 1.0, 1.0]),
     )
     values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
               "phi": np.array([0.3, -0.2, 0.8, 0.0]), "sigma": np.array([0.9, 1.1, 1.3, 0.7])}

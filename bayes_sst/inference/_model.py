@@ -25,8 +25,8 @@ class ScaledPriors(NamedTuple):
     alpha_sd: float
     alpha_low: float
     alpha_high: float
-    spread_median: float
-    spread_log_sd: float
+    spread_median: float | jnp.ndarray  # one for all four coefficients, or (4,)
+    spread_log_sd: float | jnp.ndarray
     noise_loc: float
     noise_log_sd: float
     varying: jnp.ndarray  # (4,) 1.0 varies between tests, 0.0 shared
@@ -43,7 +43,9 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
         "alpha",
         dist.TruncatedNormal(priors.alpha_mean, priors.alpha_sd, low=priors.alpha_low, high=priors.alpha_high),
     )
-    spread = numpyro.sample("spread", dist.LogNormal(jnp.log(priors.spread_median), priors.spread_log_sd).expand([4]).to_event(1))
+    spread_loc = jnp.broadcast_to(jnp.log(jnp.asarray(priors.spread_median)), (4,))
+    spread_scale = jnp.broadcast_to(jnp.asarray(priors.spread_log_sd), (4,))
+    spread = numpyro.sample("spread", dist.LogNormal(spread_loc, spread_scale).to_event(1))
     with numpyro.plate("test", n_tests):
         phi = numpyro.sample("phi", dist.Uniform(-PHI_BOUND, PHI_BOUND))
         sigma = numpyro.sample("sigma", dist.LogNormal(priors.noise_loc, priors.noise_log_sd))
@@ -76,7 +78,7 @@ def _to_interval(x, low, high):
 
 def _log_normal_density(x, loc, scale):
     log_x = np.log(x)
-    return -log_x - math.log(scale) - 0.5 * math.log(2 * math.pi) - 0.5 * ((log_x - loc) / scale) ** 2
+    return -log_x - np.log(scale) - 0.5 * math.log(2 * math.pi) - 0.5 * ((log_x - loc) / scale) ** 2
 
 
 def unconstrained_start(values: dict, priors: ScaledPriors) -> dict:
@@ -107,7 +109,8 @@ def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float
     log_prior = (
         -0.5 * ((float(alpha) - m) / s) ** 2 - math.log(s) - 0.5 * math.log(2 * math.pi)
         - math.log(cdf((priors.alpha_high - m) / s) - cdf((priors.alpha_low - m) / s))
-        + np.sum(_log_normal_density(spread, math.log(priors.spread_median), priors.spread_log_sd))
+        + np.sum(_log_normal_density(spread, np.log(np.asarray(priors.spread_median, dtype=float)),
+                                     np.asarray(priors.spread_log_sd, dtype=float)))
         - phi.size * math.log(2 * PHI_BOUND)
         + np.sum(_log_normal_density(sigma, priors.noise_loc, priors.noise_log_sd))
     )

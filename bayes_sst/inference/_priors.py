@@ -26,7 +26,8 @@ and s = 0.5; physics_prior_report lists each centre with the relation and inputs
 
     alpha ~ N(0.75, 0.5^2) truncated to [0.05, 1.95]   (0.5 turbulent orifice flow, 1 laminar)
     rho_k ~ LogNormal(log 0.03, 1)   between-test sd of each coefficient, relative to its
-                               centre (90 % prior mass from 0.6 % to 15 %)
+                               centre (90 % prior mass from 0.6 % to 15 %); a coefficient
+                               in spread_by_coefficient has its own (median, log sd)
     phi_j ~ U(-0.999, 0.999)   AR(1) coefficient of test j's residual
     sigma_j ~ LogNormal(log(0.05 F_rms), 2)   innovation sd of test j
 
@@ -73,6 +74,8 @@ class Priors:
     spread_median: float = 0.03
     spread_log_sd: float = 1.0
     shared: tuple[str, ...] = ()
+    # {coefficient: (median, log sd)} of a between-test spread prior other than the common one
+    spread_by_coefficient: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     noise_scale: float = 0.05
     noise_log_sd: float = 2.0
     source: str = "generic"
@@ -88,6 +91,14 @@ class Priors:
             raise ValueError(f"shared coefficients must be among {COEFFICIENTS}, got {sorted(unknown)}")
         return np.array([0.0 if name in self.shared else 1.0 for name in COEFFICIENTS])
 
+    def spread_prior(self) -> tuple[np.ndarray, np.ndarray]:
+        """Median and log sd of each coefficient's between-test spread prior, (4,) each."""
+        unknown = set(self.spread_by_coefficient) - set(COEFFICIENTS)
+        if unknown:
+            raise ValueError(f"spread priors must be for coefficients among {COEFFICIENTS}, got {sorted(unknown)}")
+        pairs = [self.spread_by_coefficient.get(name, (self.spread_median, self.spread_log_sd)) for name in COEFFICIENTS]
+        return np.array([float(m) for m, _ in pairs]), np.array([float(s) for _, s in pairs])
+
     def describe(self) -> dict[str, Any]:
         return {
             "source": self.source,
@@ -95,7 +106,10 @@ class Priors:
             "relative_sd": self.relative_sd,
             "alpha": {"mean": self.alpha_mean, "sd": self.alpha_sd, "low": self.alpha_low, "high": self.alpha_high},
             "between_test_spread": {"median": self.spread_median, "log_sd": self.spread_log_sd,
-                                    "shared": list(self.shared)},
+                                    "shared": list(self.shared),
+                                    **({"by_coefficient": {k: {"median": m, "log_sd": s} for k, (m, s)
+                                                           in self.spread_by_coefficient.items()}}
+                                       if self.spread_by_coefficient else {})},
             **({"relations": dict(self.relations)} if self.relations else {}),
         }
 

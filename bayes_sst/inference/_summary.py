@@ -22,7 +22,7 @@ ESS_LIMIT = 400
 NUISANCE_RHAT_LIMIT = 1.1
 NUISANCE_ESS_LIMIT = 20
 # a between-test sd of the moving mass above this share is not physical: it means the sine
-# tests' per-test Me and Ke slid along their ridge (fit refits with Me shared; summarize warns)
+# tests' per-test Me and Ke slid along their ridge (fit refits with that spread held near 2 %; summarize warns)
 IMPLAUSIBLE_MASS_SPREAD = 0.10
 
 
@@ -156,11 +156,18 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     notes = json.loads(tree.attrs.get("signal_notes", "") or "[]")
     refit = json.loads(tree.attrs.get("mass_refit", "") or "null")
     if refit:
+        if refit.get("shared", "spread_median" not in refit):
+            held = "zero (Me shared by all tests)"
+            tried = (f" ({100 * refit['held_fit_mass_spread']:.0f} % with the spread held near "
+                     f"{100 * refit['spread_median']:.0f} %)" if "held_fit_mass_spread" in refit else "")
+        else:
+            held, tried = f"held near {100 * refit['spread_median']:.0f} %", ""
         notes.append(
-            f"Me is shared by all tests: a first fit with Me varying gave a between-test sd of "
-            f"{100 * refit['first_fit_mass_spread']:.0f} % for the moving mass, which a table does not do (per-test "
-            "Me and Ke of the sine tests slide along their ridge when the force noise is small against Me times "
-            "the accelerometer's); the numbers are from the refit (README, known limitations)"
+            f"Me's between-test spread is {held}: a first fit with the common spread prior gave the moving mass "
+            f"a between-test sd of {100 * refit['first_fit_mass_spread']:.0f} %{tried}, which a table does not do "
+            "(per-test Me and Ke of sine tests slide along their ridge when their harmonics, which alone tell "
+            "the two apart, carry noise or friction the model does not have); the numbers are from the refit "
+            "(README, known limitations)"
         )
     unphysical = unphysical_coefficients(parameters)
     if unphysical:

@@ -80,7 +80,7 @@ def sampler_checks(tree) -> list[Check]:
     stats = tree["sample_stats"].to_dataset()
     n_draws = int(stats.sizes["chain"] * stats.sizes["draw"])
     checks = []
-    # a coefficient shared by all tests (--shared, or fit's mass refit) has a spread of exactly
+    # a coefficient shared by all tests (--shared) has a spread of exactly
     # 0 in every draw: no R-hat or ESS to compute, so it is left out of these checks
     spreads = tree["posterior"]["between_test_sd"]
     varying = [c for c in spreads["coefficient"].values
