@@ -41,6 +41,8 @@ def _cmd_fit(args) -> int:
     options = SignalOptions(cutoff_multiple=args.cutoff_multiple)
     if args.reversal_band is not None:  # the user's band holds for every test, accelerometer or not
         options = replace(options, reversal_band=args.reversal_band, reversal_band_without_accelerometer=None)
+    if args.reversal_speed is not None:
+        options = replace(options, reversal_speed=args.reversal_speed)
     priors = make_priors(args.prior, series.table)
     if args.shared:
         priors = replace(priors, shared=tuple(args.shared))
@@ -124,6 +126,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reversal-band", type=float, default=None,
                    help="leave out samples slower than this share of the peak speed (default 0.1, and "
                         "0.2 for tests without an accelerometer; a value given here applies to every test)")
+    p.add_argument("--reversal-speed", type=float, default=None, metavar="M_PER_S",
+                   help="the band reaches at least this speed, up to half the peak speed (default 0.01 m/s: "
+                        "friction exceeds its kinetic level below a few Stribeck velocities)")
     p.add_argument("--force", action="store_true", help="replace an existing run folder")
     p.set_defaults(handler=_cmd_fit)
 

@@ -216,6 +216,23 @@ def test_reversal_weight_is_zero_in_the_band_and_one_beyond_the_taper():
     assert np.all(reversal_weight(speed, 1.0, SignalOptions(reversal_band=0.0)) == 1.0)
 
 
+@pytest.mark.parametrize("peak, edge", [(1.0, 0.1), (0.05, 0.2), (0.015, 0.5), (0.004, 0.5)])
+def test_the_reversal_band_reaches_the_speed_floor_up_to_half_the_peak(peak, edge):
+    """10 % of the peak speed, but at least 10 mm/s, and never more than half the peak: a
+    1 m/s test keeps its 10 %, a 50 mm/s test loses up to 10 mm/s (20 %), a 15 or 4 mm/s one
+    its slower half."""
+    from bayes_sst.signals._prepare import reversal_band_share
+
+    options = SignalOptions(reversal_band=0.1, reversal_speed=0.01, reversal_taper=0.1)
+    assert reversal_band_share(peak, options) == pytest.approx(edge)
+    speed = np.linspace(-peak, peak, 4001)
+    w = reversal_weight(speed, peak, options)
+    assert np.all(w[np.abs(speed) <= (edge - 1e-6) * peak] == 0.0)
+    assert np.all(w[np.abs(speed) >= (edge + 0.1 + 1e-6) * peak] == 1.0)
+    assert reversal_weight(np.array([(edge + 0.05) * peak]), peak, options)[0] == pytest.approx(0.5)
+    assert reversal_band_share(peak, replace(options, reversal_speed=0.0)) == pytest.approx(0.1)
+
+
 # --------------------------------------------------------------------------- cycles
 
 

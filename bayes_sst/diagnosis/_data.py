@@ -24,7 +24,8 @@ from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_seri
                                zero_phase_lowpass)
 from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 
-# The default view treats the signals as the fit does: the reversal band (|v| < 10 % of the
+# The default view treats the signals as the fit does (but without the fit's 10 mm/s floor on
+# the band, with which the selection thresholds were not set): the reversal band (|v| < 10 % of the
 # peak speed) is left out and force and regressors are multiplied by the reversal weight before
 # the low-pass (signals.reversal_weight), with the fit's 2.5 ms velocity kernel. Why: at each
 # reversal the table rests and breaks away, the Coulomb step is not the physics there, and a
@@ -36,7 +37,7 @@ from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 # (docs/diagnosis.md). The accelerometer is read as recorded, not as its cycle-synchronous
 # average (signals.periodic_component), as when the selection thresholds were set.
 DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.1, reversal_band_without_accelerometer=None,
-                                  reversal_window=True, velocity_smoothing_s=0.0025, periodic_acceleration=False)
+                                  reversal_speed=0.0, reversal_window=True, velocity_smoothing_s=0.0025, periodic_acceleration=False)
 # The reversal view, for stiction, which lives at low speed: a 12f cut-off and the reversal
 # weight with a narrow band (2 % of the peak speed, then the usual ramp). Why each part, on the
 # virtual table (static ratio 1.3-1.5, Stribeck velocity 10-20 mm/s) and clean series of both
@@ -56,7 +57,7 @@ DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.1, revers
 # (signals.complementary_velocity), because the kernel alone rounds each breakaway's corner by
 # about 0.4*a*10 ms, more than a Stribeck velocity of 5 mm/s (1.3 read as 1.7 on seed 21).
 REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, reversal_band_without_accelerometer=None,
-                                 reversal_window=True, velocity_smoothing_s=0.01, periodic_acceleration=False,
+                                 reversal_speed=0.0, reversal_window=True, velocity_smoothing_s=0.01, periodic_acceleration=False,
                                  velocity_with_accelerometer=True)
 # The stroke view, for effects that grow with |u| (nonlinear_stiffness, position_friction,
 # strut_inertia): a wider band and no samples slower than 35 % of the peak speed. Under a sine
@@ -66,7 +67,7 @@ REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, rever
 # per-test coefficients). At 8f the smear stays inside the left-out band. (12f was tried: the
 # fitted test-to-test spread went to 18 %; 8f keeps it at the true 2 %.)
 STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_band_without_accelerometer=None,
-                               reversal_window=False, periodic_acceleration=False)
+                               reversal_speed=0.0, reversal_window=False, periodic_acceleration=False)
 DEFAULT_STRUT_H = 1.0
 # without an accelerometer, u is smoothed as the fit's velocity is before it is differentiated
 VELOCITY_SMOOTHING_S = SignalOptions().velocity_smoothing_s

@@ -38,8 +38,9 @@ def run_signal_options(tree) -> SignalOptions:
     offsets (no "remove_offsets"), the payload's friction load (no "payload_friction") or the
     accelerometer's noise estimate (no "accelerometer_noise") was fitted without it, and is
     re-prepared without it; one from before the separate band for tests without an
-    accelerometer (no "reversal_band_without_accelerometer") used its reversal_band for all, and
-    one from before the accelerometer check (no "check_accelerometer") used every recorded a.
+    accelerometer (no "reversal_band_without_accelerometer") used its reversal_band for all,
+    one from before the accelerometer check (no "check_accelerometer") used every recorded a,
+    and one from before the band's speed floor (no "reversal_speed") had none.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -52,6 +53,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("accelerometer_noise", False)
     recorded.setdefault("reversal_band_without_accelerometer", None)
     recorded.setdefault("check_accelerometer", False)
+    recorded.setdefault("reversal_speed", 0.0)
     return SignalOptions(**recorded)
 
 

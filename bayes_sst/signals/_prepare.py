@@ -34,7 +34,15 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    from 83 % to 92 %; on 50 twin series Fmu within 3 % from 80 % to 84 %, every coverage
    within 86-96 %. 5 % narrowed Fmu further (1.9 %) but moved the twin's Me by +0.36 posterior
    sd on average, since its table rests for 5-30 ms at a reversal. A test without a recorded
-   acceleration keeps 20 % (SignalOptions.band_for).
+   acceleration keeps 20 % (SignalOptions.band_for). The band reaches at least
+   reversal_speed (10 mm/s; at most half the peak speed): friction exceeds the kinetic level
+   below a few Stribeck velocities (mm/s on lubricated bearings) whatever the test's peak
+   speed, and on a slow sine those samples are a large share of the cycle. Their excess
+   friction enters the harmonics that alone tell a sine's Me from its Ke; on 30 clean series of
+   the LuGre generator (Stribeck velocity 2-5 mm/s, peak ratio up to 1.05) the slow sines' Me
+   came out 30-90 % low, and Me and Ke were covered in 83 % of series; with the 10 mm/s floor
+   in 90 % and 93 % (Ce 93 -> 90 %, alpha 83 % either way). On the first independent
+   generator (Coulomb friction) coverage stayed within one series of what it was.
 4. Steady state. Only the longest run of whole cycles whose amplitude sits on the plateau
    enters; ramp-in and ramp-out cycles are trimmed. The means of F, u, a (and a measured v)
    over those cycles are subtracted first (without_steady_offsets): sensor zero offsets.
@@ -99,6 +107,7 @@ class SignalOptions:
     reversal_window : multiply force and regressors by the reversal weight (reversal_weight)
         before filtering, so that the reversal misfit is not spread into the kept samples.
     reversal_taper : width of the weight's ramp, as a share of the peak speed.
+    reversal_speed : the band reaches at least this speed (m/s), up to half the peak speed.
     periodic_acceleration : replace a measured acceleration inside the steady window by its
         cycle-synchronous average over whole-sample cycle shifts (periodic_component).
     remove_offsets : subtract from F, u, a (and a measured v) their means over the steady
@@ -125,6 +134,7 @@ class SignalOptions:
     velocity_with_accelerometer: bool = False
     reversal_window: bool = True
     reversal_taper: float = 0.1
+    reversal_speed: float = 0.01
     periodic_acceleration: bool = True
     remove_offsets: bool = True
     payload_friction: bool = True
@@ -268,9 +278,17 @@ def friction_load(table, payload_kg: float) -> float:
     return float(friction_load_ratio(hold_down_force(p0, area), deck, float(payload_kg)))
 
 
+def reversal_band_share(peak_speed: float, options: "SignalOptions") -> float:
+    """The band's edge as a share of the peak speed: b = max(reversal_band, reversal_speed/peak),
+    at most max(reversal_band, 0.5) so that a slow test keeps the faster half of its cycle."""
+    if peak_speed <= 0.0:
+        return options.reversal_band
+    return min(max(options.reversal_band, options.reversal_speed / peak_speed), max(options.reversal_band, 0.5))
+
+
 def reversal_weight(velocity: np.ndarray, peak_speed: float, options: "SignalOptions") -> np.ndarray:
-    """w(t) in [0, 1]: 0 where |v| < reversal_band*peak_speed, 1 above (reversal_band +
-    reversal_taper)*peak_speed, a raised-cosine ramp between (all ones when the window is off).
+    """w(t) in [0, 1]: 0 where |v| < b*peak_speed, 1 above (b + reversal_taper)*peak_speed, a
+    raised-cosine ramp between (all ones when the window is off); b = reversal_band_share.
 
     Why: at a reversal the table rests and breaks away, and there the force is not
     Me*a + Ke*u + (Ce*|v|^alpha + Fmu)*sign(v) (the holding force ramps between -Fs and +Fs
@@ -282,7 +300,7 @@ def reversal_weight(velocity: np.ndarray, peak_speed: float, options: "SignalOpt
     """
     if not options.reversal_window or options.reversal_band <= 0.0 or peak_speed <= 0.0:
         return np.ones_like(velocity, dtype=float)
-    ramp = (np.abs(velocity) / peak_speed - options.reversal_band) / max(options.reversal_taper, 1e-9)
+    ramp = (np.abs(velocity) / peak_speed - reversal_band_share(peak_speed, options)) / max(options.reversal_taper, 1e-9)
     ramp = np.clip(ramp, 0.0, 1.0)
     return 0.5 - 0.5 * np.cos(np.pi * ramp)
 
@@ -436,7 +454,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     index = np.arange(window.start, window.stop, decimation)
     speed = np.abs(v_f[window.start : window.stop])
     peak_speed = float(np.percentile(speed, 99.5))
-    keep = np.abs(v_f[index]) >= options.reversal_band * peak_speed
+    keep = np.abs(v_f[index]) >= reversal_band_share(peak_speed, options) * peak_speed
     weight = reversal_weight(v_f, peak_speed, options)
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
