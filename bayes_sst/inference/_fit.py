@@ -17,7 +17,7 @@ from bayes_sst.io import Series
 from bayes_sst.signals import PreparedTest, SignalOptions, prepare_series
 
 # (median, log sd) of the moving mass's between-test spread prior in fit's mass refit: 90 % of
-# its mass from 0.9 % to 4.6 %, what fixtures and mounting change between tests. Why not a
+# its mass from 1.1 % to 3.6 %, what fixtures and mounting change between tests. Why not a
 # shared Me (the refit until 2026-11-26): where the mass does vary by a few percent, a shared
 # Me is over-confident; on clean series of the LuGre generator (Me varying 1-3 % per test)
 # three slow-sine series of thirty came out at Me -3.1, +1.0, +5.0 % with sds of 0.1 %.
