@@ -223,6 +223,7 @@ def fit(
     start_table = moment_table(moments, np)
 
     def sample(priors: Priors):
+        spread_medians, spread_log_sds = priors.spread_prior()
         scaled = ScaledPriors(
             mean=jnp.asarray(priors.centre_vector() / moments.coefficient_scale),
             sd=jnp.full(4, priors.relative_sd) * jnp.asarray(priors.centre_vector() / moments.coefficient_scale),
@@ -230,8 +231,8 @@ def fit(
             alpha_sd=priors.alpha_sd,
             alpha_low=priors.alpha_low,
             alpha_high=priors.alpha_high,
-            spread_median=jnp.asarray(priors.spread_prior()[0]),
-            spread_log_sd=jnp.asarray(priors.spread_prior()[1]),
+            spread_median=jnp.asarray(spread_medians),
+            spread_log_sd=jnp.asarray(spread_log_sds),
             noise_loc=float(np.log(priors.noise_scale)),
             noise_log_sd=priors.noise_log_sd,
             varying=jnp.asarray(priors.varying_mask()),
@@ -312,18 +313,21 @@ def fit(
             _release_compiled_programs()
         return tree
 
+    def mass_spread(tree) -> float:
+        return float(relative_between_test_sd(tree["posterior"], "Me").mean())
+
     tree = sample(priors)
-    mass_spread = float(relative_between_test_sd(tree["posterior"], "Me").mean())
+    first_spread = mass_spread(tree)
     if (auto_mass_refit and "Me" not in priors.shared and "Me" not in priors.spread_by_coefficient
-            and mass_spread > IMPLAUSIBLE_MASS_SPREAD):
-        _say(progress, f"the moving mass came out varying by {100 * mass_spread:.0f} % between tests, which a "
+            and first_spread > IMPLAUSIBLE_MASS_SPREAD):
+        _say(progress, f"the moving mass came out varying by {100 * first_spread:.0f} % between tests, which a "
                        f"table does not do; refitting with its between-test spread held near "
                        f"{100 * HELD_MASS_SPREAD[0]:.0f} % ...")
-        refit = {"first_fit_mass_spread": mass_spread, "threshold": IMPLAUSIBLE_MASS_SPREAD,
+        refit = {"first_fit_mass_spread": first_spread, "threshold": IMPLAUSIBLE_MASS_SPREAD,
                  "spread_median": HELD_MASS_SPREAD[0], "spread_log_sd": HELD_MASS_SPREAD[1]}
         held = replace(priors, spread_by_coefficient={**priors.spread_by_coefficient, "Me": HELD_MASS_SPREAD})
         tree = sample(held)
-        held_spread = float(relative_between_test_sd(tree["posterior"], "Me").mean())
+        held_spread = mass_spread(tree)
         priors = held
         if held_spread > IMPLAUSIBLE_MASS_SPREAD:
             # the prior could not hold it: some tests' Me is pinned far off by what the model

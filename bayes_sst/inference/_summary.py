@@ -156,6 +156,7 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     notes = json.loads(tree.attrs.get("signal_notes", "") or "[]")
     refit = json.loads(tree.attrs.get("mass_refit", "") or "null")
     if refit:
+        # a run from before the held spread (no "spread_median") was refitted with Me shared
         if refit.get("shared", "spread_median" not in refit):
             held = "zero (Me shared by all tests)"
             tried = (f" ({100 * refit['held_fit_mass_spread']:.0f} % with the spread held near "
