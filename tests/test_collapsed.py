@@ -286,6 +286,116 @@ def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_pr
         assert potential_energy(moved, numpy_table, priors) == pytest.approx(expected, rel=1e-10, abs=1e-8)
 
 
+
+@pytest.mark.parametrize("spread_prior", [(0.03, 1.0), ((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5))])
+def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior):
+    """The start also carries the potential's gradient from numpy (inference._model.
+    potential_gradient); reverse-mode differentiation of NumPyro's potential_energy of the same
+    model must give the same vector for every site, with a coefficient shared (Ke) and with
+    per-coefficient spread priors."""
+    from numpyro.infer.util import potential_energy as numpyro_potential
+
+    from bayes_sst.inference._model import ScaledPriors, potential_gradient, table_force_model, unconstrained_start
+
+    rng = np.random.default_rng(11)
+    zs, table = _random_problem(rng, n_tests=4, n_samples=50)
+    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
+    priors = ScaledPriors(
+        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
+        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
+        spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
+        noise_loc=0.2, noise_log_sd=1.5, varying=jnp.array([1.0, 0.0, 1.0, 1.0]),
+    )
+    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
+              "phi": np.array([0.3, -0.2, 0.8, 0.0]), "sigma": np.array([0.9, 1.1, 1.3, 0.7])}
+    z = unconstrained_start(values, priors)
+
+    def potential(sites):
+        return numpyro_potential(table_force_model, (table, priors), {}, sites)
+
+    for shift in (0.0, 0.4, -0.8):
+        moved = {name: value + shift * rng.standard_normal(np.shape(value)) for name, value in z.items()}
+        expected = jax.grad(potential)({k: jnp.asarray(v) for k, v in moved.items()})
+        got = potential_gradient(moved, numpy_table, priors)
+        for name in values:
+            assert np.shape(got[name]) == np.shape(moved[name]), name
+            np.testing.assert_allclose(got[name], np.asarray(expected[name]), rtol=1e-7, atol=1e-8, err_msg=name)
+        assert got["spread"][1] != 0.0  # a shared coefficient's spread still has its prior's pull
+
+
+def _start_problem():
+    """A small collapsed problem, its priors and a start in the unconstrained space."""
+    from bayes_sst.inference._model import ScaledPriors, unconstrained_start
+
+    rng = np.random.default_rng(5)
+    zs, table = _random_problem(rng, n_tests=5, n_samples=80)
+    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
+    priors = ScaledPriors(
+        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
+        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
+        spread_median=jnp.asarray(0.03), spread_log_sd=jnp.asarray(1.0),
+        noise_loc=0.0, noise_log_sd=1.5, varying=jnp.array([1.0, 1.0, 1.0, 1.0]),
+    )
+    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
+              "phi": np.array([0.3, -0.2, 0.5, 0.0, 0.1]), "sigma": np.array([0.9, 1.1, 1.3, 0.7, 1.0])}
+    return table, numpy_table, priors, unconstrained_start(values, priors)
+
+
+def test_the_posterior_mode_is_where_the_potential_is_flat_and_lowest_around():
+    """posterior_mode must end where dU/dz is ~0 (a thousandth of the start's) and U is below the start,
+    and no random nearby point may be lower; a search whose potential cannot be evaluated
+    returns the start unchanged."""
+    from bayes_sst.inference import _model
+    from bayes_sst.inference._model import posterior_mode, potential_energy, potential_gradient
+
+    _, numpy_table, priors, z = _start_problem()
+    scales = {"alpha": 0.1, "spread": np.full(4, 0.3), "phi": np.full(5, 0.1), "sigma": np.full(5, 0.1)}
+    mode = posterior_mode(z, numpy_table, priors, scales)
+    lowest = potential_energy(mode, numpy_table, priors)
+    assert lowest < potential_energy(z, numpy_table, priors) - 1.0
+    def steepest(sites):
+        return max(np.max(np.abs(g)) for g in potential_gradient(sites, numpy_table, priors).values())
+
+    assert steepest(z) > 10.0
+    assert steepest(mode) < 1e-3 * steepest(z)
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        nearby = {name: value + 0.05 * rng.standard_normal(np.shape(value)) for name, value in mode.items()}
+        assert potential_energy(nearby, numpy_table, priors) > lowest
+
+    def broken(*args, **kwargs):
+        return float("nan")
+
+    original = _model.potential_energy
+    _model.potential_energy = broken
+    try:
+        kept = posterior_mode(z, numpy_table, priors, scales)
+    finally:
+        _model.potential_energy = original
+    for name in z:
+        np.testing.assert_array_equal(kept[name], z[name])
+
+
+def test_global_curvature_equals_the_hessian_of_numpyros_potential():
+    """global_curvature's finite differences of the numpy gradient must match JAX's exact
+    second derivatives of NumPyro's potential over alpha and the four spreads."""
+    from numpyro.infer.util import potential_energy as numpyro_potential
+
+    from bayes_sst.inference._model import global_curvature, table_force_model
+
+    table, numpy_table, priors, z = _start_problem()
+
+    def potential(global_sites):
+        sites = {"alpha": global_sites[0], "spread": global_sites[1:],
+                 "phi": jnp.asarray(z["phi"]), "sigma": jnp.asarray(z["sigma"])}
+        return numpyro_potential(table_force_model, (table, priors), {}, sites)
+
+    flat = jnp.concatenate([jnp.atleast_1d(jnp.asarray(z["alpha"])), jnp.asarray(z["spread"])])
+    expected = np.asarray(jax.hessian(potential)(flat))
+    got = global_curvature(z, numpy_table, priors)
+    assert got.shape == (5, 5)
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
 def _damping_problem(rng, n_tests=5, n_samples=120):
     """Tests with a real damping column |v|^alpha sign v tabulated on a 0.025 grid (alpha moves
     the likelihood), force = x . theta_j + AR(1)-ish noise."""

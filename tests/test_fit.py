@@ -202,22 +202,29 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).check_accelerometer is False
 
 
-def _white_force_noise_series():
+def _white_force_noise_series(seed: int = 1):
     from bayes_sst.twin import SensorNoise
 
-    return simulate("sst-paper", seed=1, spread={"Ke": 0.03, "Ce": 0.03, "Fmu": 0.03},
+    return simulate("sst-paper", seed=seed, spread={"Ke": 0.03, "Ce": 0.03, "Fmu": 0.03},
                     noise=SensorNoise(F_colored=0.0))
 
 
 def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_its_spread_held():
     """With only white force noise and the accelerometer read as recorded (no synchronous
-    average, no noise correction), the accelerometer's noise (times Me) dominates the slow sine tests' residual,
-    and their per-test Me can slide along the Me-Ke ridge toward 0. The posterior then has a
-    second mode: with seed 2 (measured 2026-11-25) some chains slide (population Me -10 %,
-    R-hat 1.53, between-test sd 17 %); seeds 1 and 3 stay at the right one (spread 0.8 %).
-    fit must notice the implausible mass spread, refit with Me's spread prior held near 2 %
-    and say so in the summary; without the automatic refit the failure is visible and flagged."""
-    series = _white_force_noise_series()
+    average, no noise correction), the accelerometer's noise (times Me) dominates the slow sine
+    tests' residual, and their per-test Me can slide along the Me-Ke ridge toward 0: the
+    posterior has a second mode. On the twin's seed 3, used here, every chain of the first fit
+    settles in it (Me -42 %, between-test sd 65 %, R-hat 1.00), from the least-squares start
+    used until 2026-11-26 as from starts around the posterior mode: the mode is the
+    posterior's, and R-hat cannot see it. fit must notice the implausible mass spread, refit
+    with Me's spread prior held near 2 % and say so in the summary; without the automatic
+    refit the failure is visible and flagged.
+
+    The held fit is itself bimodal here: measured with sampler seeds 0-3, in two of them one
+    chain of four slid (its mean spread 35 %, R-hat 1.53, Me -10 %), and fit went on to share Me
+    by all tests (Me -0.05 %); in the other two the held fit stood (Me -0.8 %). Either end
+    must be right and say what it did."""
+    series = _white_force_noise_series(seed=3)
     truth = series.extra["truth"]["Me"]
     as_recorded = SignalOptions(periodic_acceleration=False, accelerometer_noise=False)
     raw = summarize(fit(series, seed=2, auto_mass_refit=False, signals=as_recorded).tree)
@@ -225,13 +232,21 @@ def test_white_force_noise_sliding_mass_is_caught_and_refitted_with_its_spread_h
     assert raw["parameters"]["Me"]["mean"] < 0.9 * truth  # the failure itself
     assert any("moving mass varies" in w and "--shared Me" in w for w in raw["warnings"])
 
-    result = fit(series, seed=2, signals=as_recorded)
-    assert "Me" in result.priors.spread_by_coefficient and "mass_refit" in result.tree.attrs
-    summary = summarize(result.tree)
-    assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.01
-    assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"]
-    assert any(w.startswith("Me's between-test spread is held near 2 %") for w in summary["warnings"])
-    assert summary["between_test_spread"]["Me"]["relative_sd_q95"] < 0.05
+    for seed in (1, 2):
+        result = fit(series, seed=seed, signals=as_recorded)
+        refit = json.loads(result.tree.attrs["mass_refit"])
+        assert "Me" in result.priors.spread_by_coefficient and refit["first_fit_mass_spread"] > 0.10
+        summary = summarize(result.tree)
+        assert summary["converged"], seed
+        assert abs(summary["parameters"]["Me"]["mean"] / truth - 1) < 0.015, seed
+        assert summary["parameters"]["Me"]["q05"] <= truth <= summary["parameters"]["Me"]["q95"], seed
+        if refit.get("shared"):
+            assert refit["held_fit_mass_spread"] > 0.10 and "Me" in result.priors.shared
+            assert any(w.startswith("Me's between-test spread is zero (Me shared by all tests)") for w in summary["warnings"])
+        else:
+            assert "Me" not in result.priors.shared
+            assert any(w.startswith("Me's between-test spread is held near 2 %") for w in summary["warnings"])
+            assert summary["between_test_spread"]["Me"]["relative_sd_q95"] < 0.05
 
 
 def test_a_mass_spread_the_held_prior_cannot_hold_ends_in_a_shared_mass(monkeypatch):
@@ -286,9 +301,11 @@ def test_without_an_accelerometer_damping_and_friction_stay_close(noisy_fit):
 
 @pytest.mark.skipif(not os.path.exists("/proc/self/maps"), reason="needs Linux /proc")
 def test_fits_release_their_compiled_programs():
-    """Each fit's sampler is a new compiled program of ~900 memory mappings; kept, ~70 fits in
-    one process exhausted the kernel's 65,530 and LLVM aborted. Released, the count stays flat
-    (measured +12 per fit; +920 without the release)."""
+    """Each fit's sampler is a new compiled program of hundreds of memory mappings; kept, ~70
+    fits in one process exhausted the kernel's 65,530 and LLVM aborted. Released, the count
+    stays flat. Measured on this 4-test series: +3 per fit released, +217 to +278 kept (+410
+    to +473 while the warm-up also adapted the mass matrix, whose code made the program
+    larger)."""
     def mappings():
         with open("/proc/self/maps") as fh:
             return sum(1 for _ in fh)
@@ -298,10 +315,10 @@ def test_fits_release_their_compiled_programs():
     before = mappings()
     for seed in (1, 2):
         fit(series, chains=2, draws=50, warmup=50, seed=seed, extensions=0)
-    assert (mappings() - before) / 2 < 200
+    assert (mappings() - before) / 2 < 50
     kept = mappings()
     fit(series, chains=2, draws=50, warmup=50, seed=3, release_compiled=False, extensions=0)
-    assert mappings() - kept > 400
+    assert mappings() - kept > 150
 
 
 def test_a_second_series_of_the_same_size_reuses_the_compiled_sampler(tmp_path):
@@ -388,3 +405,32 @@ def test_a_drifting_accelerometer_on_the_lugre_generator_does_not_pin_a_wrong_ma
         z = (parameters[name]["mean"] - truth[name]) / parameters[name]["sd"]
         assert abs(z) < 2.5, (name, z)
     assert parameters["Me"]["mean"] == pytest.approx(truth["Me"], rel=0.03)
+
+
+def test_chains_start_apart_by_the_starting_mass_matrix():
+    """Each chain starts at mode + dispersion * N(0, inverse mass): over many chains the
+    starts' mean is the mode and their covariance is dispersion^2 times the dense global block
+    and the per-test variances; the same seed gives the same starts, another seed others."""
+    from bayes_sst.inference._fit import _dispersed_starts
+
+    rng = np.random.default_rng(0)
+    root = rng.standard_normal((5, 5)) * 0.1 + np.diag([0.5, 0.3, 0.2, 0.4, 0.6])
+    global_block = root @ root.T
+    inverse_mass = {("alpha", "spread"): global_block, ("phi",): np.array([0.01, 0.04, 0.09]),
+                    ("sigma",): np.array([0.25, 0.01, 0.0025])}
+    mode = {"alpha": np.asarray(0.3), "spread": np.array([-4.0, -3.5, -3.0, -4.5]),
+            "phi": np.array([0.1, 0.5, -0.2]), "sigma": np.array([-1.0, 0.0, 1.0])}
+    starts = _dispersed_starts(mode, inverse_mass, 4000, seed=3, dispersion=2.0)
+    global_shift = np.stack([np.concatenate([np.atleast_1d(s["alpha"] - mode["alpha"]), s["spread"] - mode["spread"]])
+                             for s in starts])
+    np.testing.assert_allclose(np.cov(global_shift.T), 4.0 * global_block, atol=0.08 * 4.0 * global_block.max())
+    assert np.all(np.abs(global_shift.mean(axis=0)) < 0.1 * np.sqrt(4.0 * np.diag(global_block)))
+    for name in ("phi", "sigma"):
+        shift = np.stack([s[name] - mode[name] for s in starts])
+        np.testing.assert_allclose(shift.var(axis=0), 4.0 * inverse_mass[(name,)], rtol=0.08)
+    assert np.shape(starts[0]["alpha"]) == () and starts[0]["phi"].shape == (3,)
+    again = _dispersed_starts(mode, inverse_mass, 2, seed=3, dispersion=2.0)
+    other = _dispersed_starts(mode, inverse_mass, 2, seed=4, dispersion=2.0)
+    np.testing.assert_array_equal(again[0]["phi"], starts[0]["phi"])
+    assert not np.allclose(other[0]["phi"], starts[0]["phi"])
+    assert not np.allclose(starts[0]["phi"], starts[1]["phi"])

@@ -48,7 +48,7 @@ def runs():
     from bayes_sst.io import load_series
 
     series = load_series(root / "series")
-    good = _write_fit(series, root / "good", chains=2, draws=600, warmup=400, seed=1)
+    good = _write_fit(series, root / "good", chains=2, draws=1000, warmup=400, seed=1)
     bad = _write_fit(series, root / "bad", chains=2, draws=15, warmup=15, seed=2, extensions=0)
     report = build_report(good, draws=300, seed=4)
     write_report(report, root / "report")

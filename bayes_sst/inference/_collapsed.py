@@ -166,17 +166,22 @@ def damping_rows(table: MomentTable, alpha, xp=jnp):
     d = sum_k w_k K_k, so its row is sum_k w_k S(K_k, .) and its diagonal w' S(K, K) w (see
     MomentTable)."""
     g, weights, slopes = hermite_weights(table, alpha, xp)
-    cell_cross, cell_gram = table.cross[g], table.gram[g]  # (3, 4, 4, J)
-    if xp.ndim(alpha):  # one alpha per draw: (draws, 3, 4, 4, J) -> (3, 4, 4, draws, J)
-        cell_cross, cell_gram = xp.moveaxis(cell_cross, 0, -2), xp.moveaxis(cell_gram, 0, -2)
-    weights, slopes = weights[..., None], slopes[..., None]  # (4, [draws,] 1)
-    # contractions as broadcast sums: XLA fuses these into loops over the tests, where its
-    # batched dot products of 4x4 blocks cost several times more on CPU
-    others = xp.sum(weights[None, :, None] * cell_cross, axis=1)  # (3, 4, J): (y, a, u, sign)
-    d_others = xp.sum(slopes[None, :, None] * cell_cross, axis=1)
-    gram_weights = xp.sum(cell_gram * weights[None, None, :], axis=2)  # (3, 4, J)
-    diagonal = xp.sum(gram_weights * weights[None, :], axis=1)  # (3, J)
-    d_diagonal = 2.0 * xp.sum(gram_weights * slopes[None, :], axis=1)
+    cell_cross, cell_gram = table.cross[g], table.gram[g]  # (3, 4, 4, J), or (draws, 3, 4, 4, J)
+    if xp.ndim(alpha):  # one alpha per draw (the posterior's draws, in numpy): einsum is 3x faster
+        others = xp.einsum("kd,dlkmj->lmdj", weights, cell_cross, optimize=True)  # (3, 4, draws, J)
+        d_others = xp.einsum("kd,dlkmj->lmdj", slopes, cell_cross, optimize=True)
+        gram_weights = xp.einsum("dlkmj,md->lkdj", cell_gram, weights, optimize=True)
+        diagonal = xp.einsum("lkdj,kd->ldj", gram_weights, weights, optimize=True)  # (3, draws, J)
+        d_diagonal = 2.0 * xp.einsum("lkdj,kd->ldj", gram_weights, slopes, optimize=True)
+    else:
+        weights, slopes = weights[..., None], slopes[..., None]  # (4, 1)
+        # contractions as broadcast sums: XLA fuses these into loops over the tests, where its
+        # batched dot products of 4x4 blocks cost several times more on CPU
+        others = xp.sum(weights[None, :, None] * cell_cross, axis=1)  # (3, 4, J): (y, a, u, sign)
+        d_others = xp.sum(slopes[None, :, None] * cell_cross, axis=1)
+        gram_weights = xp.sum(cell_gram * weights[None, None, :], axis=2)  # (3, 4, J)
+        diagonal = xp.sum(gram_weights * weights[None, :], axis=1)  # (3, J)
+        d_diagonal = 2.0 * xp.sum(gram_weights * slopes[None, :], axis=1)
 
     def row(o, diag):
         return xp.stack([o[:, 0], o[:, 1], o[:, 2], diag, o[:, 3]], axis=1)
