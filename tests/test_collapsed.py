@@ -254,6 +254,25 @@ def test_population_is_right_when_the_recorded_force_is_nearly_noise_free():
     assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05
 
 
+def _site_problem(seed, spread_prior=(0.03, 1.0), varying=(1.0, 0.0, 1.0, 1.0), noise_loc=0.2,
+                  n_samples=50, phi=(0.3, -0.2, 0.8, 0.0), sigma=(0.9, 1.1, 1.3, 0.7)):
+    """A small collapsed problem (one test per phi), its scaled priors and site values: the
+    generator (for later draws), the table in JAX and in numpy, the priors and the values."""
+    from bayes_sst.inference._model import ScaledPriors
+
+    rng = np.random.default_rng(seed)
+    _, table = _random_problem(rng, n_tests=len(phi), n_samples=n_samples)
+    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
+    priors = ScaledPriors(
+        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
+        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
+        spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
+        noise_loc=noise_loc, noise_log_sd=1.5, varying=jnp.array(varying),
+    )
+    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]), "phi": np.array(phi), "sigma": np.array(sigma)}
+    return rng, table, numpy_table, priors, values
+
+
 @pytest.mark.parametrize("spread_prior", [(0.03, 1.0), ((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5))])
 def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_prior):
     """The sampler's start carries a potential computed in numpy (inference._model); NumPyro's
@@ -262,19 +281,9 @@ def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_pr
     and with a prior of their own (fit's mass refit holds Me's)."""
     from numpyro.infer.util import potential_energy as numpyro_potential, unconstrain_fn
 
-    from bayes_sst.inference._model import ScaledPriors, potential_energy, table_force_model, unconstrained_start
+    from bayes_sst.inference._model import potential_energy, table_force_model, unconstrained_start
 
-    rng = np.random.default_rng(7)
-    zs, table = _random_problem(rng, n_tests=4, n_samples=50)
-    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
-    priors = ScaledPriors(
-        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
-        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
-        spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
-        noise_loc=0.2, noise_log_sd=1.5, varying=jnp.array([1.0, 0.0, 1.0, 1.0]),
-    )
-    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
-              "phi": np.array([0.3, -0.2, 0.8, 0.0]), "sigma": np.array([0.9, 1.1, 1.3, 0.7])}
+    rng, table, numpy_table, priors, values = _site_problem(7, spread_prior)
     z = unconstrained_start(values, priors)
     z_numpyro = unconstrain_fn(table_force_model, (table, priors), {}, {k: jnp.asarray(v) for k, v in values.items()})
     for name in values:
@@ -295,19 +304,9 @@ def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior):
     per-coefficient spread priors."""
     from numpyro.infer.util import potential_energy as numpyro_potential
 
-    from bayes_sst.inference._model import ScaledPriors, potential_gradient, table_force_model, unconstrained_start
+    from bayes_sst.inference._model import potential_gradient, table_force_model, unconstrained_start
 
-    rng = np.random.default_rng(11)
-    zs, table = _random_problem(rng, n_tests=4, n_samples=50)
-    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
-    priors = ScaledPriors(
-        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
-        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
-        spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
-        noise_loc=0.2, noise_log_sd=1.5, varying=jnp.array([1.0, 0.0, 1.0, 1.0]),
-    )
-    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
-              "phi": np.array([0.3, -0.2, 0.8, 0.0]), "sigma": np.array([0.9, 1.1, 1.3, 0.7])}
+    rng, table, numpy_table, priors, values = _site_problem(11, spread_prior)
     z = unconstrained_start(values, priors)
 
     def potential(sites):
@@ -325,19 +324,11 @@ def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior):
 
 def _start_problem():
     """A small collapsed problem, its priors and a start in the unconstrained space."""
-    from bayes_sst.inference._model import ScaledPriors, unconstrained_start
+    from bayes_sst.inference._model import unconstrained_start
 
-    rng = np.random.default_rng(5)
-    zs, table = _random_problem(rng, n_tests=5, n_samples=80)
-    numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
-    priors = ScaledPriors(
-        mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
-        alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
-        spread_median=jnp.asarray(0.03), spread_log_sd=jnp.asarray(1.0),
-        noise_loc=0.0, noise_log_sd=1.5, varying=jnp.array([1.0, 1.0, 1.0, 1.0]),
-    )
-    values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]),
-              "phi": np.array([0.3, -0.2, 0.5, 0.0, 0.1]), "sigma": np.array([0.9, 1.1, 1.3, 0.7, 1.0])}
+    _, table, numpy_table, priors, values = _site_problem(
+        5, varying=(1.0, 1.0, 1.0, 1.0), noise_loc=0.0, n_samples=80,
+        phi=(0.3, -0.2, 0.5, 0.0, 0.1), sigma=(0.9, 1.1, 1.3, 0.7, 1.0))
     return table, numpy_table, priors, unconstrained_start(values, priors)
 
 
