@@ -30,6 +30,21 @@ HERE = Path(__file__).resolve().parent
 NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
 
 
+def gain_truth(series, truth):
+    """The payload's friction gain the generator's friction rule implies in the package's terms,
+    where truth.json names the rule's normal load (the LuGre generator: Fmu_test =
+    Fmu*(1 + m_p g/N0), so kappa = N_described/N0 with N_described = F_hd + m_deck g from the
+    series' description); None otherwise."""
+    from bayes_sst.signals import friction_load
+
+    normal_load = truth.get("friction_normal_load_n")
+    if not normal_load:
+        return None
+    probe = 1000.0
+    described = friction_load(series.table, probe) - 1.0
+    return float(probe * 9.81 / normal_load / described) if described > 0 else None
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--series", type=int, default=12)
@@ -80,11 +95,18 @@ def main():
             p = summary["parameters"][name]
             row[name] = {"truth": truth[name], "mean": p["mean"], "sd": p["sd"], "q05": p["q05"], "q95": p["q95"],
                          "covered": bool(p["q05"] <= truth[name] <= p["q95"]), "z": (p["mean"] - truth[name]) / p["sd"]}
+        if "payload_friction_gain" in summary:
+            g = summary["payload_friction_gain"]
+            row["payload_friction_gain"] = {"mean": g["mean"], "sd": g["sd"], "q05": g["q05"], "q95": g["q95"],
+                                            "truth": gain_truth(series, truth)}
         rows.append(row)
         cells = "  ".join(
             (f"{row[n]['mean'] - row[n]['truth']:+.3f}" if n == "alpha" else f"{100 * (row[n]['mean'] / row[n]['truth'] - 1):+5.1f}%")
             + (" Y" if row[n]["covered"] else " N") for n in NAMES)
-        print(f"seed {seed:3d}  {cells}  R-hat {row['max_r_hat']:.3f}{'  mass refit' if row['mass_refit'] else ''}",
+        gain = row.get("payload_friction_gain")
+        print(f"seed {seed:3d}  {cells}  R-hat {row['max_r_hat']:.3f}{'  mass refit' if row['mass_refit'] else ''}"
+              + (f"  kappa {gain['mean']:.2f} [{gain['q05']:.2f}, {gain['q95']:.2f}]"
+                 + (f" truth {gain['truth']:.2f}" if gain["truth"] is not None else "") if gain else ""),
               flush=True)
     summary = {}
     for name in NAMES:

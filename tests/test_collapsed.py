@@ -255,35 +255,48 @@ def test_population_is_right_when_the_recorded_force_is_nearly_noise_free():
 
 
 def _site_problem(seed, spread_prior=(0.03, 1.0), varying=(1.0, 0.0, 1.0, 1.0), noise_loc=0.2,
-                  n_samples=50, phi=(0.3, -0.2, 0.8, 0.0), sigma=(0.9, 1.1, 1.3, 0.7)):
+                  n_samples=50, phi=(0.3, -0.2, 0.8, 0.0), sigma=(0.9, 1.1, 1.3, 0.7), friction_load=None):
     """A small collapsed problem (one test per phi), its scaled priors and site values: the
-    generator (for later draws), the table in JAX and in numpy, the priors and the values."""
-    from bayes_sst.inference._model import ScaledPriors
+    generator (for later draws), the table in JAX and in numpy, the priors and the values;
+    with friction_load (one per test), the payload's friction gain is a site too."""
+    from bayes_sst.inference._model import GAIN_SITE, ScaledPriors
 
     rng = np.random.default_rng(seed)
     _, table = _random_problem(rng, n_tests=len(phi), n_samples=n_samples)
+    if friction_load is not None:
+        table = table._replace(load_share=jnp.asarray(1.0 - 1.0 / np.asarray(friction_load)))
     numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
     priors = ScaledPriors(
         mean=jnp.array([1.0, 0.8, 1.2, 0.9]), sd=jnp.array([0.5, 0.4, 0.7, 0.3]),
         alpha_mean=0.5, alpha_sd=0.2, alpha_low=0.1, alpha_high=1.2,
         spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
         noise_loc=noise_loc, noise_log_sd=1.5, varying=jnp.array(varying),
+        gain=None if friction_load is None else (1.0, 2.0, 0.0, 6.0),
     )
     values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]), "phi": np.array(phi), "sigma": np.array(sigma)}
+    if friction_load is not None:
+        values[GAIN_SITE] = 1.6
     return rng, table, numpy_table, priors, values
 
 
-@pytest.mark.parametrize("spread_prior", [(0.03, 1.0), ((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5))])
-def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_prior):
+# spread priors and bearing loads of the start's tests: one spread prior for all, one per
+# coefficient (fit's mass refit holds Me's), and tests under payloads (the friction gain sampled)
+SITE_CASES = [((0.03, 1.0), None), (((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5)), None),
+              ((0.03, 1.0), (1.0, 1.2, 1.0, 1.5))]
+
+
+@pytest.mark.parametrize("spread_prior, friction_load", SITE_CASES)
+def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_prior, friction_load):
     """The sampler's start carries a potential computed in numpy (inference._model); NumPyro's
     own potential_energy of the same model must give the same number, at the start and away
-    from it, with every site's prior and Jacobian; with one spread prior for all coefficients
-    and with a prior of their own (fit's mass refit holds Me's)."""
+    from it, with every site's prior and Jacobian; with one spread prior for all coefficients,
+    with a prior of their own (fit's mass refit holds Me's), and with the payload's friction
+    gain among the sites."""
     from numpyro.infer.util import potential_energy as numpyro_potential, unconstrain_fn
 
     from bayes_sst.inference._model import potential_energy, table_force_model, unconstrained_start
 
-    rng, table, numpy_table, priors, values = _site_problem(7, spread_prior)
+    rng, table, numpy_table, priors, values = _site_problem(7, spread_prior, friction_load=friction_load)
     z = unconstrained_start(values, priors)
     z_numpyro = unconstrain_fn(table_force_model, (table, priors), {}, {k: jnp.asarray(v) for k, v in values.items()})
     for name in values:
@@ -296,17 +309,17 @@ def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_pr
 
 
 
-@pytest.mark.parametrize("spread_prior", [(0.03, 1.0), ((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5))])
-def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior):
+@pytest.mark.parametrize("spread_prior, friction_load", SITE_CASES)
+def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior, friction_load):
     """The start also carries the potential's gradient from numpy (inference._model.
     potential_gradient); reverse-mode differentiation of NumPyro's potential_energy of the same
-    model must give the same vector for every site, with a coefficient shared (Ke) and with
-    per-coefficient spread priors."""
+    model must give the same vector for every site, with a coefficient shared (Ke), with
+    per-coefficient spread priors, and with the payload's friction gain among the sites."""
     from numpyro.infer.util import potential_energy as numpyro_potential
 
     from bayes_sst.inference._model import potential_gradient, table_force_model, unconstrained_start
 
-    rng, table, numpy_table, priors, values = _site_problem(11, spread_prior)
+    rng, table, numpy_table, priors, values = _site_problem(11, spread_prior, friction_load=friction_load)
     z = unconstrained_start(values, priors)
 
     def potential(sites):
@@ -439,6 +452,42 @@ def test_closed_form_gradient_equals_reverse_mode_differentiation(shared_frictio
             assert np.allclose(mine, reference, rtol=1e-7, atol=1e-9 * np.max(np.abs(reference))), name
         if shared_friction:
             assert float(ours[1][1][3]) == 0.0
+
+
+def test_the_payload_friction_gain_scales_the_coulomb_column_and_its_gradient_is_exact():
+    """kappa rescales test j's Coulomb column from L_j filter(sign v) to (1 + kappa (L_j - 1))
+    filter(sign v): the likelihood at kappa must equal that of moments whose SIGN row and column
+    were multiplied by s_j = (1 + kappa (L_j - 1))/L_j by hand; kappa = 1 must leave the
+    likelihood as it is without loads; and the closed-form derivative in kappa (with those in
+    alpha and phi, which the scaling also enters) must equal reverse-mode differentiation."""
+    from bayes_sst.inference._collapsed import SIGN, _collapsed_value
+
+    rng = np.random.default_rng(21)
+    plain = _damping_problem(rng)
+    J = plain.n_pairs.shape[0]
+    loads = 1.0 + rng.uniform(0.0, 0.6, J)
+    loads[0] = 1.0
+    loaded = plain._replace(load_share=jnp.asarray(1.0 - 1.0 / loads))
+    args = (jnp.asarray(0.7), jnp.array([0.05, 0.08, 0.2, 0.1]), jnp.asarray(rng.uniform(-0.5, 0.8, J)),
+            jnp.asarray(rng.uniform(0.03, 0.1, J)), jnp.ones(4), jnp.full(4, 0.7))
+    assert float(collapsed_log_likelihood(loaded, *args, gain=1.0)) == pytest.approx(
+        float(collapsed_log_likelihood(plain, *args)), rel=1e-13)
+    for gain in (0.0, 0.4, 2.5):
+        factors = (1.0 + gain * (loads - 1.0)) / loads
+        column = np.ones((5, J))
+        column[SIGN] = factors
+        by_hand = plain._replace(constant=plain.constant * column[:, None] * column[None, :],
+                                 cross=plain.cross.at[:, :, :, 3].multiply(factors))
+        assert float(collapsed_log_likelihood(loaded, *args, gain=gain)) == pytest.approx(
+            float(collapsed_log_likelihood(by_hand, *args)), rel=1e-11)
+        ours = jax.grad(lambda a, p, k: collapsed_log_likelihood(loaded, a, args[1], p, *args[3:], gain=k),
+                        argnums=(0, 1, 2))(args[0], args[2], jnp.asarray(gain))
+        traced = jax.grad(lambda a, p, k: _collapsed_value(loaded, a, args[1], p, *args[3:], jnp, k),
+                          argnums=(0, 1, 2))(args[0], args[2], jnp.asarray(gain))
+        for name, mine, reference in zip(("alpha", "phi", "gain"), ours, traced):
+            np.testing.assert_allclose(np.asarray(mine), np.asarray(reference), rtol=1e-8,
+                                       atol=1e-10 * np.max(np.abs(np.asarray(reference))), err_msg=name)
+        assert abs(float(ours[2])) > 0.0
 
 
 def test_closed_form_gradient_holds_when_the_force_is_far_above_its_noise():

@@ -68,6 +68,44 @@ class MomentTable(NamedTuple):
     alpha_start: float
     alpha_step: float
     noise_floor: float = 0.0  # see RELATIVE_NOISE_FLOOR
+    # (J,) (L_j - 1)/L_j of each test's friction load L_j (signals.friction_load); None: all 0
+    load_share: jax.Array | None = None
+
+
+# The payload's friction. The Coulomb column of test j is L_j*filter(sign v), with L_j the
+# bearing-load ratio the table description gives (signals.friction_load); the model lets the
+# data scale the description's payload increase by a gain kappa (the sampled site
+# payload_friction_gain), so that test j's Coulomb column becomes
+#
+#     (1 + kappa (L_j - 1)) filter(sign v) = s_j L_j filter(sign v),   s_j = 1 + (kappa - 1) w_j,
+#     w_j = (L_j - 1)/L_j,
+#
+# and every lag sum's row and column SIGN is multiplied by s_j: S_j -> E_j S_j E_j with
+# E_j = diag(1, 1, 1, 1, s_j). kappa = 1 is the description's physics (Fmu = mu_e (F_hd + m g));
+# a simulator or table whose friction ignores the hold-down force has kappa = (F_hd + m g)/(m g),
+# one whose friction ignores the payload has kappa = 0.
+SIGN = 4  # index of the Coulomb column in z
+
+
+def friction_factors(table: MomentTable, gain, xp=jnp):
+    """s_j = 1 + (kappa - 1) w_j, (J,) (or (draws, J) for a gain per draw (draws,))."""
+    if table.load_share is None:
+        return None
+    gain = xp.asarray(gain)
+    return 1.0 + (gain[..., None] - 1.0) * table.load_share
+
+
+def _scaled_sign(S, factors, xp):
+    """S (..., 5, 5, [draws,] J) with its row and column SIGN multiplied by the factors
+    ([draws,] J): E S E."""
+    if factors is None:
+        return S
+    unit = np.zeros(5)
+    unit[SIGN] = 1.0
+    n_batch = factors.ndim
+    e = _trailing(unit, 1 + n_batch)  # (5, 1, ...)
+    column = 1.0 + e * (factors - 1.0)  # (5, [draws,] J)
+    return S * column[:, None] * column[None, :]
 
 
 # The likelihood's noise sd is sqrt(sigma^2 + floor^2), floor = this share of the RMS force.
@@ -82,9 +120,9 @@ RELATIVE_NOISE_FLOOR = 1e-4
 
 
 def compact_table(moments, damping_cross, damping_gram, n_pairs, alpha_grid, xp=jnp,
-                  noise_floor: float = 0.0) -> MomentTable:
+                  noise_floor: float = 0.0, friction_load=None) -> MomentTable:
     """MomentTable from lagged moments (J, G, 3, 5, 5) and the damping cells (J, G-1, 3, 4, 4)
-    of a LaggedMoments."""
+    of a LaggedMoments; friction_load (J,) the tests' L_j (None: no payload's friction)."""
     from bayes_sst.inference._statistics import symmetric_lag_sums
 
     alpha_grid = np.asarray(alpha_grid, dtype=float)
@@ -99,6 +137,7 @@ def compact_table(moments, damping_cross, damping_gram, n_pairs, alpha_grid, xp=
         alpha_start=float(alpha_grid[0]),
         alpha_step=float(alpha_grid[1] - alpha_grid[0]),
         noise_floor=float(noise_floor),
+        load_share=None if friction_load is None else xp.asarray(1.0 - 1.0 / np.asarray(friction_load, dtype=float)),
     )
 
 
@@ -106,7 +145,8 @@ def moment_table(lagged, xp=jnp) -> MomentTable:
     """MomentTable from a LaggedMoments (whose response is scaled by the RMS force, so that the
     noise floor is RELATIVE_NOISE_FLOOR in its units)."""
     return compact_table(lagged.moments, lagged.damping_cross, lagged.damping_gram, lagged.n_pairs,
-                         lagged.alpha_grid, xp, noise_floor=RELATIVE_NOISE_FLOOR)
+                         lagged.alpha_grid, xp, noise_floor=RELATIVE_NOISE_FLOOR,
+                         friction_load=getattr(lagged, "friction_load", None))
 
 
 class TestTerms(NamedTuple):
@@ -189,9 +229,11 @@ def damping_rows(table: MomentTable, alpha, xp=jnp):
     return row(others, diagonal), row(d_others, d_diagonal)
 
 
-def lag_sums_at(table: MomentTable, alpha, xp=jnp):
-    """S_l(alpha), l = 0, 1, 2, as (3, 5, 5, J): W = S0 - phi S1 + phi^2 S2."""
-    return _with_damping_row(table.constant, damping_rows(table, alpha, xp)[0])
+def lag_sums_at(table: MomentTable, alpha, xp=jnp, gain=1.0):
+    """S_l(alpha), l = 0, 1, 2, as (3, 5, 5, J): W = S0 - phi S1 + phi^2 S2, with the payload's
+    friction gain `gain` (friction_factors)."""
+    S = _with_damping_row(table.constant, damping_rows(table, alpha, xp)[0])
+    return _scaled_sign(S, friction_factors(table, gain, xp), xp)
 
 
 def _lagged(S, phi):
@@ -199,9 +241,9 @@ def _lagged(S, phi):
     return S[0] - phi * (S[1] - phi * S[2])
 
 
-def whitened_at(table: MomentTable, alpha, phi, xp=jnp):
+def whitened_at(table: MomentTable, alpha, phi, xp=jnp, gain=1.0):
     """W_j(alpha, phi_j) = S0 - phi_j S1 + phi_j^2 S2 at alpha, (5, 5, J)."""
-    return _lagged(lag_sums_at(table, alpha, xp), phi)
+    return _lagged(lag_sums_at(table, alpha, xp, gain), phi)
 
 
 # spreads below this (scaled units, i.e. relative to the prior centre) are raised to it inside
@@ -266,8 +308,8 @@ def _noise_sd(table: MomentTable, sigma, xp):
     return xp.sqrt(sigma * sigma + table.noise_floor * table.noise_floor)
 
 
-def _terms(table, alpha, rho, phi, sigma, xp):
-    return test_terms(whitened_at(table, alpha, phi, xp), table.n_pairs, _noise_sd(table, sigma, xp), rho, xp)
+def _terms(table, alpha, rho, phi, sigma, xp, gain=1.0):
+    return test_terms(whitened_at(table, alpha, phi, xp, gain), table.n_pairs, _noise_sd(table, sigma, xp), rho, xp)
 
 
 def _symmetric(whitened, xp):
@@ -374,54 +416,73 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
     return value, (d_whitened, d_noise, d_rho, d_prior_mean, d_prior_sd)
 
 
-def _collapsed_value(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp):
-    return marginal_log_likelihood(whitened_at(table, alpha, phi, xp), table.n_pairs, _noise_sd(table, sigma, xp),
+def _collapsed_value(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain=1.0):
+    return marginal_log_likelihood(whitened_at(table, alpha, phi, xp, gain), table.n_pairs, _noise_sd(table, sigma, xp),
                                    rho, prior_mean, prior_sd, xp)
 
 
-def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp):
+def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp, gain=1.0):
     """collapsed_log_likelihood and its gradient with respect to (alpha, rho, phi, sigma,
-    prior_mean, prior_sd). With G_j = dl/dW_j (marginal_gradient) and the lag sums S_l(alpha):
+    prior_mean, prior_sd, gain). With G_j = dl/dW_j (marginal_gradient) and the lag sums
+    S_l(alpha) (their row and column SIGN scaled by s_j, friction_factors):
 
         dl/dphi_j   = sum_ab G_j,ab (2 phi_j S2 - S1)_ab
         dl/dalpha   = sum_j sum_ab G_j,ab dW_j,ab/dalpha    (only row and column DAMPING move)
         dl/dsigma_j = dl/ds_j * sigma_j / s_j,   s_j = sqrt(sigma_j^2 + floor^2)
+        dl/dkappa   = sum_j w_j (2/s_j) sum_b G_j,SIGN b W_j,SIGN b
+
+    (W_j = E_j W0_j E_j, so dW_j/ds_j is row and column SIGN of W_j divided by s_j, the corner
+    counted twice.)
     """
     rows, d_rows = damping_rows(table, alpha, xp)
-    S = _with_damping_row(table.constant, rows)
+    factors = friction_factors(table, gain, xp)
+    S = _scaled_sign(_with_damping_row(table.constant, rows), factors, xp)
     noise = _noise_sd(table, sigma, xp)
+    W = _lagged(S, phi)
     value, (d_W, d_noise, d_rho, d_prior_mean, d_prior_sd) = marginal_gradient(
-        _lagged(S, phi), table.n_pairs, noise, rho, prior_mean, prior_sd, xp)
+        W, table.n_pairs, noise, rho, prior_mean, prior_sd, xp)
     d_phi = xp.sum(d_W * (2.0 * phi * S[2] - S[1]), axis=(0, 1))
     d_row = _lagged(d_rows, phi)  # row DAMPING of dW/dalpha, (5, J); d_W is symmetric
+    if factors is None:
+        d_gain = xp.zeros(())
+    else:
+        d_row = d_row * (1.0 + (_trailing(np.eye(5)[SIGN], 2) * (factors - 1.0)))
+        d_gain = xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
     d_alpha = xp.sum(2.0 * xp.sum(d_W[DAMPING] * d_row, axis=0) - d_W[DAMPING, DAMPING] * d_row[DAMPING])
-    return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd)
+    return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain)
 
 
-def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp):
-    """log p(y | alpha, rho, phi, sigma) with every theta_j and mu integrated out (scaled units).
+def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp, gain=1.0):
+    """log p(y | alpha, rho, phi, sigma, kappa) with every theta_j and mu integrated out (scaled
+    units); gain is the payload's friction gain kappa (friction_factors).
 
     Under JAX its derivative is collapsed_gradient's closed form rather than reverse-mode
     differentiation of the factorisations (see marginal_gradient for why); the moment table
     itself is data and gets no derivative."""
     if xp is jnp:
-        static = (table.alpha_start, table.alpha_step, table.noise_floor)
-        return _collapsed_jax(static, (table.constant, table.cross, table.gram, table.n_pairs),
-                              alpha, rho, phi, sigma, prior_mean, prior_sd)
-    return _collapsed_value(table, alpha, rho, phi, sigma, prior_mean, prior_sd, xp)
+        # without loads the gain's scaling is left out of the compiled program altogether
+        with_loads = table.load_share is not None
+        static = (table.alpha_start, table.alpha_step, table.noise_floor, with_loads)
+        load_share = table.load_share if with_loads else jnp.zeros_like(table.n_pairs)
+        return _collapsed_jax(static, (table.constant, table.cross, table.gram, table.n_pairs, load_share),
+                              alpha, rho, phi, sigma, prior_mean, prior_sd, jnp.asarray(gain, dtype=float))
+    return _collapsed_value(table, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain)
 
 
 def _table(static, arrays):
-    return MomentTable(*arrays, *static)
+    constant, cross, gram, n_pairs, load_share = arrays
+    *numbers, with_loads = static
+    return MomentTable(constant, cross, gram, n_pairs, *numbers, load_share if with_loads else None)
 
 
 @partial(jax.custom_vjp, nondiff_argnums=(0,))
-def _collapsed_jax(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd):
-    return _collapsed_value(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd, jnp)
+def _collapsed_jax(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd, gain):
+    return _collapsed_value(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd, jnp, gain)
 
 
-def _collapsed_jax_forward(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd):
-    value, gradient = collapsed_gradient(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd, jnp)
+def _collapsed_jax_forward(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd, gain):
+    value, gradient = collapsed_gradient(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd,
+                                         jnp, gain)
     return value, (gradient, arrays)
 
 
@@ -435,15 +496,18 @@ _collapsed_jax.defvjp(_collapsed_jax_forward, _collapsed_jax_backward)
 
 
 def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
-                      prior_mean, prior_sd, xp=jnp):
+                      prior_mean, prior_sd, xp=jnp, gain=1.0):
     """An exact draw of mu (4,) and every theta_j (J, 4) given the sampled parameters, from
     standard normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
     log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units).
 
-    Many draws at once: alpha (draws,), rho (4, draws), phi and sigma (draws, J),
+    Many draws at once: alpha and gain (draws,), rho (4, draws), phi and sigma (draws, J),
     normal_mu (4, draws) and normal_theta (draws, J, 4) give mu (draws, 4), theta
-    (draws, J, 4) and the log-likelihood (draws, J)."""
-    terms = _terms(table, alpha, rho, phi, sigma, xp)
+    (draws, J, 4) and the log-likelihood (draws, J).
+
+    theta_j's Coulomb coefficient is that of test j's column s_j L_j filter(sign v)
+    (friction_factors): the empty table's friction as the test saw it."""
+    terms = _terms(table, alpha, rho, phi, sigma, xp, gain)
     Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
     Q_chol = sl.cholesky(Q, xp)
     # mu = Q^-1 r + L^-T z has covariance Q^-1

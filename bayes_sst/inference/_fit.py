@@ -9,8 +9,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bayes_sst.inference._priors import Priors, make_priors
-from bayes_sst.inference._summary import (ESS_LIMIT, IMPLAUSIBLE_MASS_SPREAD, RHAT_LIMIT, relative_between_test_sd,
+from bayes_sst.inference._priors import GAIN_SITE, Priors, make_priors, payload_gain_identifiable
+from bayes_sst.inference._summary import (ESS_LIMIT, IMPLAUSIBLE_MASS_SPREAD, RHAT_LIMIT, largest_chain_spread,
                                          short_of_limits)
 from bayes_sst.inference._statistics import LaggedMoments, lagged_moments
 from bayes_sst.io import Series
@@ -78,8 +78,9 @@ def _say(progress: Callable[[str], None] | None, message: str):
         progress(message)
 
 
-def _initial_values(moments: LaggedMoments, alpha: float):
-    """Per-test least-squares start for sigma and phi at a plausible alpha (scaled units)."""
+def _initial_values(moments: LaggedMoments, alpha: float, with_gain: bool = False):
+    """Per-test least-squares start for sigma and phi at a plausible alpha (scaled units); the
+    payload's friction gain at 1 (the table description's physics) where it is sampled."""
     import jax.numpy as jnp
 
     grid = moments.alpha_grid
@@ -97,15 +98,19 @@ def _initial_values(moments: LaggedMoments, alpha: float):
         phi = float(np.clip(lag1 / max(lag0, 1e-12), -0.9, 0.95))
         sigmas.append(np.sqrt(rss / n * max(1 - phi * phi, 0.05)))
         phis.append(phi)
-    return {
+    values = {
         "alpha": jnp.asarray(alpha),
         "spread": jnp.full(4, 0.02),
         "phi": jnp.asarray(phis),
         "sigma": jnp.asarray(sigmas),
     }
+    if with_gain:
+        values[GAIN_SITE] = jnp.asarray(1.0)
+    return values
 
 
-def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, alpha_sd: float = 0.03):
+def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, alpha_sd: float = 0.03,
+                          gain_sd: float = 0.3):
     """A first guess of the posterior variances in NumPyro's unconstrained space.
 
     An identity mass matrix makes the first 100 warm-up iterations of a 200-test fit take
@@ -114,6 +119,7 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
 
         sd(log sigma_j) ~ 1/sqrt(2 n_j),   sd(phi_j) ~ sqrt(max(1 - phi_j^2, 2/n_j)/n_j),
         sd(log rho_k) ~ 1/sqrt(2 J) + 0.25 (capped at the prior's 1),
+        sd(kappa) ~ gain_sd (the payload's friction gain, where it is sampled),
 
     mapped through the interval transforms: for x = low + (high - low)*sigmoid(z),
     dz/dx = (high - low)/((x - low)(high - x)). These scales steer the search for the mode;
@@ -133,11 +139,36 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     sd_alpha = alpha_sd * (priors.alpha_high - priors.alpha_low) / ((alpha - priors.alpha_low) * (priors.alpha_high - alpha))
     sd_log_spread = np.minimum(priors.spread_prior()[1], 0.25 + 1.0 / np.sqrt(2.0 * moments.n_tests))
     global_variances = np.concatenate([[sd_alpha**2], sd_log_spread**2])
+    if GAIN_SITE in start:
+        low, high = priors.payload_friction_gain[2:]
+        gain = float(np.clip(start[GAIN_SITE], low + 0.05 * (high - low), high - 0.05 * (high - low)))
+        sd_gain = gain_sd * (high - low) / ((gain - low) * (high - gain))
+        global_variances = np.append(global_variances, sd_gain**2)
     return {
-        ("alpha", "spread"): jnp.diag(jnp.asarray(global_variances)),
+        _global_block(start): jnp.diag(jnp.asarray(global_variances)),
         ("phi",): jnp.asarray(sd_phi**2),
         ("sigma",): jnp.asarray(sd_log_sigma**2),
     }
+
+
+def _global_block(sites) -> tuple[str, ...]:
+    """The names of the sampler's dense mass block among `sites` (alpha, the spreads, and the
+    payload's friction gain where it is sampled)."""
+    return ("alpha", "spread") + ((GAIN_SITE,) if GAIN_SITE in sites else ())
+
+
+def _global_key(inverse_mass: dict) -> tuple[str, ...]:
+    """The key of the dense global block in an inverse mass matrix dict."""
+    return next(key for key in inverse_mass if "alpha" in key)
+
+
+def _split_global(vector, block) -> dict:
+    """A vector over the dense block's coordinates as {site: part} (alpha and the gain scalars)."""
+    vector = np.asarray(vector, dtype=float)
+    parts = {"alpha": vector[0], "spread": vector[1:5]}
+    if GAIN_SITE in block:
+        parts[GAIN_SITE] = vector[5]
+    return parts
 
 
 # Each chain starts this many (conditional) posterior sds away from the mode, in a random
@@ -150,14 +181,12 @@ def _dispersed_starts(mode: dict, inverse_mass: dict, chains: int, seed: int, di
     """One start per chain: mode + dispersion * (draw from N(0, inverse_mass)), in NumPyro's
     unconstrained space (the global block dense, the per-test sites diagonal)."""
     rng = np.random.default_rng([seed, 20_251_126])
-    global_root = np.linalg.cholesky(np.asarray(inverse_mass[("alpha", "spread")], dtype=float))
+    block = _global_block(mode)
+    global_root = np.linalg.cholesky(np.asarray(inverse_mass[block], dtype=float))
     starts = []
     for _ in range(chains):
-        shift = global_root @ rng.standard_normal(global_root.shape[0])
-        start = {
-            "alpha": np.asarray(mode["alpha"], dtype=float) + dispersion * shift[0],
-            "spread": np.asarray(mode["spread"], dtype=float) + dispersion * shift[1:],
-        }
+        shift = _split_global(global_root @ rng.standard_normal(global_root.shape[0]), block)
+        start = {name: np.asarray(mode[name], dtype=float) + dispersion * shift[name] for name in shift}
         for name in ("phi", "sigma"):
             sd = np.sqrt(np.asarray(inverse_mass[(name,)], dtype=float))
             start[name] = np.asarray(mode[name], dtype=float) + dispersion * sd * rng.standard_normal(sd.shape)
@@ -167,10 +196,9 @@ def _dispersed_starts(mode: dict, inverse_mass: dict, chains: int, seed: int, di
 
 def _site_scales(inverse_mass: dict) -> dict:
     """Each site's rough posterior sd in the unconstrained space, from _initial_inverse_mass."""
-    global_sd = np.sqrt(np.diag(np.asarray(inverse_mass[("alpha", "spread")])))
+    block = _global_key(inverse_mass)
     return {
-        "alpha": global_sd[0],
-        "spread": global_sd[1:],
+        **_split_global(np.sqrt(np.diag(np.asarray(inverse_mass[block]))), block),
         "phi": np.sqrt(np.asarray(inverse_mass[("phi",)])),
         "sigma": np.sqrt(np.asarray(inverse_mass[("sigma",)])),
     }
@@ -189,7 +217,10 @@ def _with_curvature(inverse_mass: dict, hessian: np.ndarray) -> dict:
         return inverse_mass
     inverse_root = np.linalg.solve(root, np.eye(len(hessian)))
     covariance = inverse_root.T @ inverse_root
-    return {**inverse_mass, ("alpha", "spread"): jnp.asarray(0.5 * (covariance + covariance.T))}
+    block = _global_key(inverse_mass)
+    if len(hessian) != len(np.asarray(inverse_mass[block])):
+        return inverse_mass
+    return {**inverse_mass, block: jnp.asarray(0.5 * (covariance + covariance.T))}
 
 
 def _release_compiled_programs():
@@ -293,6 +324,9 @@ def fit(
     start_table = moment_table(moments, np)
 
     def sample(priors: Priors):
+        with_gain = priors.payload_friction_gain is not None and payload_gain_identifiable(moments.friction_load)
+        table_now = table if with_gain else table._replace(load_share=None)
+        start_now = start_table if with_gain else start_table._replace(load_share=None)
         spread_medians, spread_log_sds = priors.spread_prior()
         scaled = ScaledPriors(
             mean=jnp.asarray(priors.centre_vector() / moments.coefficient_scale),
@@ -306,22 +340,27 @@ def fit(
             noise_loc=float(np.log(priors.noise_scale)),
             noise_log_sd=priors.noise_log_sd,
             varying=jnp.asarray(priors.varying_mask()),
+            gain=tuple(float(x) for x in priors.payload_friction_gain) if with_gain else None,
         )
-        start_values = _initial_values(moments, priors.alpha_mean)
+        start_values = _initial_values(moments, priors.alpha_mean, with_gain)
         inverse_mass = _initial_inverse_mass(moments, start_values, priors)
         # the chains start around the posterior mode (_dispersed_starts), with potentials and
         # gradients computed outside the compiled sampler (see bayes_sst.inference._model), and
         # the global sites' mass matrix from the curvature at the mode
         z = unconstrained_start({name: np.asarray(value) for name, value in start_values.items()}, scaled)
-        z = posterior_mode(z, start_table, scaled, _site_scales(inverse_mass))
+        z = posterior_mode(z, start_now, scaled, _site_scales(inverse_mass))
         inverse_mass = _with_curvature(_initial_inverse_mass(moments, constrained_sites(z, scaled), priors),
-                                       global_curvature(z, start_table, scaled))
+                                       global_curvature(z, start_now, scaled))
+        default_blocks = settings.dense_mass == SamplerSettings.dense_mass
+        dense_mass = settings.dense_mass if isinstance(settings.dense_mass, bool) else list(settings.dense_mass)
+        if default_blocks:
+            dense_mass = [_global_block(z)]
         kernel = NUTS(
             table_force_model,
-            inverse_mass_matrix=inverse_mass if settings.dense_mass == (("alpha", "spread"),) else None,
+            inverse_mass_matrix=inverse_mass if default_blocks else None,
             target_accept_prob=settings.target_accept,
             max_tree_depth=settings.max_tree_depth,
-            dense_mass=settings.dense_mass if isinstance(settings.dense_mass, bool) else list(settings.dense_mass),
+            dense_mass=dense_mass,
             init_strategy=init_to_value(values=start_values),
             adapt_mass_matrix=settings.adapt_mass_matrix,
         )
@@ -338,8 +377,8 @@ def fit(
         _say(progress, f"sampling {chains} chains x ({warmup} warm-up + {draws} draws), NUTS ({chain_method}) ...")
         start = time.perf_counter()
         starts = _dispersed_starts(z, inverse_mass, chains, seed, START_DISPERSION)
-        potentials = [potential_energy(start, start_table, scaled) for start in starts]
-        gradients = [potential_gradient(start, start_table, scaled) for start in starts]
+        potentials = [potential_energy(start, start_now, scaled) for start in starts]
+        gradients = [potential_gradient(start, start_now, scaled) for start in starts]
         usable = [np.isfinite(u) and all(np.all(np.isfinite(g)) for g in gradient.values())
                   for u, gradient in zip(potentials, gradients)]
         if all(usable):
@@ -355,7 +394,7 @@ def fit(
         else:  # a start the numpy potential cannot evaluate is left to NumPyro's own initialisation
             init = None
         fields = ("diverging", "num_steps", "accept_prob", "energy", "potential_energy", "adapt_state.step_size")
-        mcmc.run(jax.random.PRNGKey(seed), table, scaled, init_params=init, extra_fields=fields)
+        mcmc.run(jax.random.PRNGKey(seed), table_now, scaled, init_params=init, extra_fields=fields)
         samples = jax.device_get(mcmc.get_samples(group_by_chain=True))
         extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
         seconds = time.perf_counter() - start
@@ -375,7 +414,7 @@ def fit(
                            f"drawing {draws} more per chain ...")
             start = time.perf_counter()
             mcmc.post_warmup_state = mcmc.last_state
-            mcmc.run(mcmc.post_warmup_state.rng_key, table, scaled, extra_fields=fields)
+            mcmc.run(mcmc.post_warmup_state.rng_key, table_now, scaled, extra_fields=fields)
             more = jax.device_get(mcmc.get_samples(group_by_chain=True))
             more_extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
             samples = {k: np.concatenate([samples[k], more[k]], axis=1) for k in samples}
@@ -391,11 +430,7 @@ def fit(
         return tree
 
     def mass_spread(tree) -> float:
-        # the largest of the chains' mean relative spreads: the chains start apart, and one
-        # that settles where the moving mass varies by tens of percent shows that the posterior
-        # has such a mode even when the other chains stay clear of it (the all-draws mean of
-        # one chain at 35 % and three at 1 % is under 10 %)
-        return float(relative_between_test_sd(tree["posterior"], "Me").mean("draw").max())
+        return largest_chain_spread(tree["posterior"], "Me")
 
     tree = sample(priors)
     first_spread = mass_spread(tree)

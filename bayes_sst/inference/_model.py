@@ -12,6 +12,7 @@ import numpyro
 import numpyro.distributions as dist
 
 from bayes_sst.inference._collapsed import MomentTable, collapsed_gradient, collapsed_log_likelihood
+from bayes_sst.inference._priors import GAIN_SITE
 
 PHI_BOUND = 0.999
 
@@ -30,19 +31,28 @@ class ScaledPriors(NamedTuple):
     noise_loc: float
     noise_log_sd: float
     varying: jnp.ndarray  # (4,) 1.0 varies between tests, 0.0 shared
+    # (mean, sd, low, high) of the truncated normal prior of the payload's friction gain kappa
+    # (see bayes_sst.inference._collapsed.friction_factors); None: kappa = 1, not sampled
+    gain: tuple[float, float, float, float] | None = None
 
 
 def table_force_model(table: MomentTable, priors: ScaledPriors):
     """Hierarchical force model with AR(1) residuals, theta_j and mu integrated out.
 
     Sites: alpha (damping exponent), spread (4 between-test sds, relative), phi and sigma
-    (per test AR(1) coefficient and innovation sd, scaled units). See _collapsed.py.
+    (per test AR(1) coefficient and innovation sd, scaled units), and where the series has
+    tests under different payloads, payload_friction_gain (kappa, see
+    _collapsed.friction_factors). See _collapsed.py.
     """
     n_tests = table.n_pairs.shape[0]
     alpha = numpyro.sample(
         "alpha",
         dist.TruncatedNormal(priors.alpha_mean, priors.alpha_sd, low=priors.alpha_low, high=priors.alpha_high),
     )
+    gain = 1.0
+    if priors.gain is not None:
+        mean, sd, low, high = priors.gain
+        gain = numpyro.sample(GAIN_SITE, dist.TruncatedNormal(mean, sd, low=low, high=high))
     spread_loc = jnp.broadcast_to(jnp.log(jnp.asarray(priors.spread_median)), (4,))
     spread_scale = jnp.broadcast_to(jnp.asarray(priors.spread_log_sd), (4,))
     spread = numpyro.sample("spread", dist.LogNormal(spread_loc, spread_scale).to_event(1))
@@ -51,7 +61,8 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
         sigma = numpyro.sample("sigma", dist.LogNormal(priors.noise_loc, priors.noise_log_sd))
     numpyro.factor(
         "force",
-        collapsed_log_likelihood(table, alpha, spread * priors.varying, phi, sigma, priors.mean, priors.sd),
+        collapsed_log_likelihood(table, alpha, spread * priors.varying, phi, sigma, priors.mean, priors.sd,
+                                 gain=gain),
     )
 
 
@@ -88,22 +99,44 @@ def _log_normal_density(x, loc, scale):
 def unconstrained_start(values: dict, priors: ScaledPriors) -> dict:
     """The sites of table_force_model in NumPyro's unconstrained space (numpy): interval sites
     through logit((x - low)/(high - low)), positive sites through log."""
-    return {
+    z = {
         "alpha": _to_interval(values["alpha"], priors.alpha_low, priors.alpha_high),
         "spread": np.log(np.asarray(values["spread"], dtype=float)),
         "phi": _to_interval(values["phi"], -PHI_BOUND, PHI_BOUND),
         "sigma": np.log(np.asarray(values["sigma"], dtype=float)),
     }
+    if priors.gain is not None:
+        z[GAIN_SITE] = _to_interval(values[GAIN_SITE], *priors.gain[2:])
+    return z
 
 
 def constrained_sites(z: dict, priors: ScaledPriors) -> dict:
     """The sites' values at unconstrained z (numpy), the inverse of unconstrained_start."""
-    return {
+    sites = {
         "alpha": _interval(z["alpha"], priors.alpha_low, priors.alpha_high)[0],
         "spread": np.exp(np.asarray(z["spread"], dtype=float)),
         "phi": _interval(z["phi"], -PHI_BOUND, PHI_BOUND)[0],
         "sigma": np.exp(np.asarray(z["sigma"], dtype=float)),
     }
+    if priors.gain is not None:
+        sites[GAIN_SITE] = _interval(z[GAIN_SITE], *priors.gain[2:])[0]
+    return sites
+
+
+def _truncated_normal_log_density(x, mean, sd, low, high):
+    """log of N(mean, sd^2) truncated to [low, high] at x; the normaliser is
+    Phi((high - m)/s) - Phi((low - m)/s)."""
+    cdf = lambda t: 0.5 * math.erfc(-t / math.sqrt(2.0))  # noqa: E731
+    return (-0.5 * ((float(x) - mean) / sd) ** 2 - math.log(sd) - 0.5 * math.log(2 * math.pi)
+            - math.log(cdf((high - mean) / sd) - cdf((low - mean) / sd)))
+
+
+def _interval_site_gradient(z, d_log_density_dx, mean, sd, low, high):
+    """d/dz [log p(x) + log|dx/dz| + l(x)] for x = low + (high - low) s(z) under a truncated
+    normal prior, given d_log_density_dx = dl/dx: (dl/dx - (x - mean)/sd^2) dx/dz + 1 - 2 s."""
+    share = 1.0 / (1.0 + np.exp(-float(z)))
+    x = low + (high - low) * share
+    return (d_log_density_dx - (x - mean) / sd ** 2) * (high - low) * share * (1.0 - share) + 1.0 - 2.0 * share
 
 
 def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float:
@@ -118,20 +151,23 @@ def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float
     alpha, log_jacobian = _interval(z["alpha"], priors.alpha_low, priors.alpha_high)
     phi, phi_jacobian = _interval(z["phi"], -PHI_BOUND, PHI_BOUND)
     spread, sigma = np.exp(np.asarray(z["spread"], dtype=float)), np.exp(np.asarray(z["sigma"], dtype=float))
-    m, s = priors.alpha_mean, priors.alpha_sd
-    cdf = lambda t: 0.5 * math.erfc(-t / math.sqrt(2.0))  # noqa: E731
+    gain, gain_log_prior, gain_jacobian = 1.0, 0.0, 0.0
+    if priors.gain is not None:
+        gain, gain_jacobian = _interval(z[GAIN_SITE], *priors.gain[2:])
+        gain_log_prior = _truncated_normal_log_density(gain, *priors.gain)
     log_prior = (
-        -0.5 * ((float(alpha) - m) / s) ** 2 - math.log(s) - 0.5 * math.log(2 * math.pi)
-        - math.log(cdf((priors.alpha_high - m) / s) - cdf((priors.alpha_low - m) / s))
+        _truncated_normal_log_density(alpha, priors.alpha_mean, priors.alpha_sd, priors.alpha_low, priors.alpha_high)
+        + gain_log_prior
         + np.sum(_log_normal_density(spread, np.log(np.asarray(priors.spread_median, dtype=float)),
                                      np.asarray(priors.spread_log_sd, dtype=float)))
         - phi.size * math.log(2 * PHI_BOUND)
         + np.sum(_log_normal_density(sigma, priors.noise_loc, priors.noise_log_sd))
     )
-    jacobian = float(log_jacobian) + np.sum(z["spread"]) + np.sum(phi_jacobian) + np.sum(z["sigma"])
+    jacobian = (float(log_jacobian) + float(gain_jacobian) + np.sum(z["spread"]) + np.sum(phi_jacobian)
+                + np.sum(z["sigma"]))
     likelihood = collapsed_log_likelihood(
         table, float(alpha), spread * np.asarray(priors.varying, dtype=float), phi, sigma,
-        np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float), np,
+        np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float), np, gain=float(gain),
     )
     return float(-(log_prior + jacobian + likelihood))
 
@@ -147,25 +183,28 @@ def potential_gradient(z: dict, table: MomentTable, priors: ScaledPriors) -> dic
     def logistic(value):
         return 1.0 / (1.0 + np.exp(-np.asarray(value, dtype=float)))
 
-    alpha_share, phi_share = logistic(z["alpha"]), logistic(z["phi"])
-    alpha = priors.alpha_low + (priors.alpha_high - priors.alpha_low) * alpha_share
+    alpha = _interval(z["alpha"], priors.alpha_low, priors.alpha_high)[0]
+    phi_share = logistic(z["phi"])
     phi = -PHI_BOUND + 2.0 * PHI_BOUND * phi_share
     z_spread, z_sigma = np.asarray(z["spread"], dtype=float), np.asarray(z["sigma"], dtype=float)
     spread, sigma = np.exp(z_spread), np.exp(z_sigma)
     varying = np.asarray(priors.varying, dtype=float)
-    _, (d_alpha, d_rho, d_phi, d_sigma, _, _) = collapsed_gradient(
+    gain = 1.0 if priors.gain is None else float(_interval(z[GAIN_SITE], *priors.gain[2:])[0])
+    _, (d_alpha, d_rho, d_phi, d_sigma, _, _, d_gain) = collapsed_gradient(
         table, float(alpha), spread * varying, phi, sigma,
-        np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float), np,
+        np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float), np, gain=gain,
     )
     spread_loc = np.log(np.asarray(priors.spread_median, dtype=float))
     spread_scale = np.asarray(priors.spread_log_sd, dtype=float)
     log_density = {
-        "alpha": (float(d_alpha) - (alpha - priors.alpha_mean) / priors.alpha_sd ** 2)
-        * (priors.alpha_high - priors.alpha_low) * alpha_share * (1.0 - alpha_share) + 1.0 - 2.0 * alpha_share,
+        "alpha": _interval_site_gradient(z["alpha"], float(d_alpha), priors.alpha_mean, priors.alpha_sd,
+                                         priors.alpha_low, priors.alpha_high),
         "spread": np.asarray(d_rho) * varying * spread - (z_spread - spread_loc) / spread_scale ** 2,
         "phi": np.asarray(d_phi) * 2.0 * PHI_BOUND * phi_share * (1.0 - phi_share) + 1.0 - 2.0 * phi_share,
         "sigma": np.asarray(d_sigma) * sigma - (z_sigma - priors.noise_loc) / priors.noise_log_sd ** 2,
     }
+    if priors.gain is not None:
+        log_density[GAIN_SITE] = _interval_site_gradient(z[GAIN_SITE], float(d_gain), *priors.gain)
     return {name: -np.asarray(value, dtype=float).reshape(np.shape(z[name])) for name, value in log_density.items()}
 
 
@@ -216,25 +255,30 @@ def posterior_mode(z: dict, table: MomentTable, priors: ScaledPriors, scales: di
     return unpack(found.x)
 
 
-GLOBAL_SITES = ("alpha", "spread")
+def global_sites(priors: ScaledPriors) -> tuple[str, ...]:
+    """The sites shared by all tests, in the order of the sampler's dense mass block: alpha,
+    the four spreads, and the payload's friction gain where it is sampled."""
+    return ("alpha", "spread") + (() if priors.gain is None else (GAIN_SITE,))
 
 
 def global_curvature(z: dict, table: MomentTable, priors: ScaledPriors, step: float = 1e-5) -> np.ndarray:
-    """d2U/dz dz' over the global sites (alpha, then the four spreads) at z, the per-test sites
-    held: central differences of potential_gradient, symmetrised, (5, 5).
+    """d2U/dz dz' over the global sites (global_sites: alpha, the four spreads, the gain) at z,
+    the per-test sites held: central differences of potential_gradient, symmetrised, (5, 5) or
+    (6, 6).
 
     Its inverse is the conditional posterior covariance of the global sites at a mode, a
     slight underestimate of their marginal covariance (the per-test sites are nearly
     independent of them), which is the safe side for the sampler's mass matrix: too small a
     scale costs leapfrog steps, too large a one makes trajectories diverge.
     """
-    coordinates = [(name, index) for name in GLOBAL_SITES for index in range(int(np.size(z[name])))]
+    names = global_sites(priors)
+    coordinates = [(name, index) for name in names for index in range(int(np.size(z[name])))]
 
     def global_gradient(name, index, shift):
         moved = {key: np.array(value, dtype=float, copy=True) for key, value in z.items()}
         moved[name].reshape(-1)[index] += shift
         gradient = potential_gradient(moved, table, priors)
-        return np.concatenate([np.ravel(gradient[key]) for key in GLOBAL_SITES])
+        return np.concatenate([np.ravel(gradient[key]) for key in names])
 
     columns = [(global_gradient(name, index, step) - global_gradient(name, index, -step)) / (2.0 * step)
                for name, index in coordinates]

@@ -21,13 +21,18 @@ def _padded(arrays, fill=np.nan):
 
 def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings, series, signals=None):
     """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
-    from bayes_sst.inference._collapsed import draw_coefficients, moment_table
+    from bayes_sst.inference._collapsed import draw_coefficients, friction_factors, moment_table
+    from bayes_sst.inference._priors import GAIN_SITE
 
     chains, draws = samples["alpha"].shape
     flat = {name: np.reshape(np.asarray(value), (chains * draws,) + value.shape[2:]) for name, value in samples.items()}
     n_draws, n_tests = chains * draws, moments.n_tests
     # numpy, in blocks of draws: the same equations as the sampler's, without an XLA compilation
     host_table = moment_table(moments, np)
+    with_gain = GAIN_SITE in samples
+    if not with_gain:
+        host_table = host_table._replace(load_share=None)
+    gain = flat[GAIN_SITE] if with_gain else np.ones(n_draws)
     prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
     spread = np.asarray(samples["spread"]) * np.asarray(scaled.varying)  # a shared coefficient's spread is 0
     flat["spread"] = np.reshape(spread, (chains * draws, 4))
@@ -43,8 +48,12 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
         part = slice(lo, min(lo + block, n_draws))
         mu[part], theta[part], per_test[part] = draw_coefficients(
             normal_mu[part].T, normal_theta[part], host_table, flat["alpha"][part], flat["spread"][part].T,
-            flat["phi"][part], flat["sigma"][part], prior_mean, prior_sd, xp=np,
+            flat["phi"][part], flat["sigma"][part], prior_mean, prior_sd, xp=np, gain=gain[part],
         )
+    if with_gain:
+        # each test's Coulomb coefficient as that of its column friction_load*filter(sign v),
+        # the column the report, the predictive checks and the diagnosis rebuild
+        theta[:, :, 3] *= friction_factors(host_table, gain, np)
     scale = moments.coefficient_scale
     mu = mu * scale
     theta = theta * scale
@@ -59,6 +68,8 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     for k, name in enumerate(COEFFICIENTS):
         posterior[name] = (("chain", "draw"), shaped(mu[:, k]))
     posterior["alpha"] = (("chain", "draw"), np.asarray(samples["alpha"]))
+    if with_gain:
+        posterior[GAIN_SITE] = (("chain", "draw"), np.asarray(samples[GAIN_SITE]))
     posterior["between_test_sd"] = (
         ("chain", "draw", "coefficient"),
         spread * scale,
@@ -70,10 +81,17 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     units = {
         "Me": "kg", "Ke": "N/m", "Ce": "N/(m/s)^alpha", "Fmu": "N", "alpha": "1",
         "between_test_sd": "SI units of each coefficient", "sigma": "N", "phi": "1",
+        GAIN_SITE: "1",
     }
     post_ds = xr.Dataset(posterior, coords={k: coords[k] for k in ("chain", "draw", "test", "coefficient")})
     for name, unit in units.items():
-        post_ds[name].attrs["units"] = unit
+        if name in post_ds:
+            post_ds[name].attrs["units"] = unit
+    if with_gain:
+        post_ds[GAIN_SITE].attrs["meaning"] = (
+            "share of the payload's friction increase predicted by the table description that is real: "
+            "test j's friction is Fmu*(1 + kappa*(friction_load_j - 1)); Fmu_test is the coefficient "
+            "of friction_load_j*filter(sign v)")
 
     diverging = np.asarray(extra["diverging"])
     n_steps = np.asarray(extra["num_steps"])

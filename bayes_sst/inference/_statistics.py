@@ -59,6 +59,8 @@ class LaggedMoments:
     coefficient_scale : (4,) theta = coefficient_scale * theta_scaled (kg, N/m, N/(m/s)^a, N).
     force_scale : N; the response is y / force_scale.
     noise_mass_kg : the plug-in Me of the accelerometer-noise correction (pooled_mass).
+    friction_load : (n_tests,) each test's bearing-load ratio L_j (signals.friction_load), the
+        factor its Coulomb column already carries; None for a LaggedMoments built without it.
     """
 
     moments: np.ndarray
@@ -71,6 +73,7 @@ class LaggedMoments:
     force_scale: float
     test_ids: tuple[str, ...]
     noise_mass_kg: float = float("nan")
+    friction_load: np.ndarray | None = None
 
     @property
     def n_tests(self) -> int:
@@ -282,6 +285,7 @@ def lagged_moments(
         force_scale=force_scale,
         test_ids=tuple(t.id for t in tests),
         noise_mass_kg=mass,
+        friction_load=np.array([t.friction_load for t in tests], dtype=float),
     )
 
 
