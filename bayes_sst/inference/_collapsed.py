@@ -95,16 +95,19 @@ def friction_factors(table: MomentTable, gain, xp=jnp):
     return 1.0 + (gain[..., None] - 1.0) * table.load_share
 
 
+def _sign_column(factors):
+    """The diagonal of E, (5, [draws,] J): 1 in every row but SIGN, which holds the factors."""
+    unit = np.zeros(5)
+    unit[SIGN] = 1.0
+    return 1.0 + _trailing(unit, 1 + factors.ndim) * (factors - 1.0)
+
+
 def _scaled_sign(S, factors, xp):
     """S (..., 5, 5, [draws,] J) with its row and column SIGN multiplied by the factors
     ([draws,] J): E S E."""
     if factors is None:
         return S
-    unit = np.zeros(5)
-    unit[SIGN] = 1.0
-    n_batch = factors.ndim
-    e = _trailing(unit, 1 + n_batch)  # (5, 1, ...)
-    column = 1.0 + e * (factors - 1.0)  # (5, [draws,] J)
+    column = _sign_column(factors)
     return S * column[:, None] * column[None, :]
 
 
@@ -446,7 +449,7 @@ def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, p
     if factors is None:
         d_gain = xp.zeros(())
     else:
-        d_row = d_row * (1.0 + (_trailing(np.eye(5)[SIGN], 2) * (factors - 1.0)))
+        d_row = d_row * _sign_column(factors)
         d_gain = xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
     d_alpha = xp.sum(2.0 * xp.sum(d_W[DAMPING] * d_row, axis=0) - d_W[DAMPING, DAMPING] * d_row[DAMPING])
     return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain)

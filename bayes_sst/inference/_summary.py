@@ -328,8 +328,8 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
         lines.append("")
         lines.append(
             f"payload's friction gain {gain['mean']:.2f} [{gain['q05']:.2f}, {gain['q95']:.2f}]: the share of the "
-            "friction increase the table description predicts for the payload tests that the data show "
-            "(1 = friction proportional to hold-down force plus weight; Fmu above is the empty table's)")
+            "friction increase the table description's bearing-load ratio predicts for the payload tests "
+            "that the data show (1 = the ratio holds; Fmu above is the empty table's)")
     lines.append("")
     lines.append(
         f"divergences {summary['divergences']}, max R-hat {summary['max_r_hat']:.3f}, "
