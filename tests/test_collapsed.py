@@ -368,14 +368,14 @@ def test_the_posterior_mode_is_where_the_potential_is_flat_and_lowest_around():
         assert potential_energy(nearby, numpy_table, priors) > lowest
 
     def broken(*args, **kwargs):
-        return float("nan")
+        return float("nan"), {}
 
-    original = _model.potential_energy
-    _model.potential_energy = broken
+    original = _model.potential_and_gradient
+    _model.potential_and_gradient = broken
     try:
         kept = posterior_mode(z, numpy_table, priors, scales)
     finally:
-        _model.potential_energy = original
+        _model.potential_and_gradient = original
     for name in z:
         np.testing.assert_array_equal(kept[name], z[name])
 

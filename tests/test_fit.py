@@ -374,7 +374,8 @@ def test_a_start_the_numpy_potential_cannot_evaluate_falls_back_to_numpyros_init
     truth of a six-test series."""
     import bayes_sst.inference._model as model
 
-    monkeypatch.setattr(model, "potential_energy", lambda *args, **kwargs: float("nan"))
+    exact = model.potential_and_gradient
+    monkeypatch.setattr(model, "potential_and_gradient", lambda *args, **kwargs: (float("nan"), exact(*args, **kwargs)[1]))
     series = simulate("sst-paper", seed=4, spread=0.02, plan=default_plan("sst-paper")[:6])
     summary = summarize(fit(series, chains=2, draws=150, warmup=150, seed=1).tree)
     truth = series.extra["truth"]

@@ -129,7 +129,7 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     """
     import jax.numpy as jnp
 
-    from bayes_sst.inference._model import PHI_BOUND
+    from bayes_sst.inference._model import PHI_BOUND, global_sites
 
     n = np.maximum(np.asarray(moments.n_pairs, dtype=float), 4.0)
     phi = np.clip(np.asarray(start["phi"], dtype=float), -0.995, 0.995)
@@ -145,21 +145,18 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
         sd_gain = gain_sd * (high - low) / ((gain - low) * (high - gain))
         global_variances = np.append(global_variances, sd_gain**2)
     return {
-        _global_block(start): jnp.diag(jnp.asarray(global_variances)),
+        global_sites(start): jnp.diag(jnp.asarray(global_variances)),
         ("phi",): jnp.asarray(sd_phi**2),
         ("sigma",): jnp.asarray(sd_log_sigma**2),
     }
 
 
-def _global_block(sites) -> tuple[str, ...]:
-    """The names of the sampler's dense mass block among `sites` (alpha, the spreads, and the
-    payload's friction gain where it is sampled)."""
-    return ("alpha", "spread") + ((GAIN_SITE,) if GAIN_SITE in sites else ())
-
-
 def _global_key(inverse_mass: dict) -> tuple[str, ...]:
-    """The key of the dense global block in an inverse mass matrix dict."""
-    return next(key for key in inverse_mass if "alpha" in key)
+    """The key of the dense global block in an inverse mass matrix dict (_model.global_sites of
+    the sites it covers)."""
+    from bayes_sst.inference._model import global_sites
+
+    return global_sites(set().union(*inverse_mass))
 
 
 def _split_global(vector, block) -> dict:
@@ -181,7 +178,7 @@ def _dispersed_starts(mode: dict, inverse_mass: dict, chains: int, seed: int, di
     """One start per chain: mode + dispersion * (draw from N(0, inverse_mass)), in NumPyro's
     unconstrained space (the global block dense, the per-test sites diagonal)."""
     rng = np.random.default_rng([seed, 20_251_126])
-    block = _global_block(mode)
+    block = _global_key(inverse_mass)
     global_root = np.linalg.cholesky(np.asarray(inverse_mass[block], dtype=float))
     starts = []
     for _ in range(chains):
@@ -217,10 +214,7 @@ def _with_curvature(inverse_mass: dict, hessian: np.ndarray) -> dict:
         return inverse_mass
     inverse_root = np.linalg.solve(root, np.eye(len(hessian)))
     covariance = inverse_root.T @ inverse_root
-    block = _global_key(inverse_mass)
-    if len(hessian) != len(np.asarray(inverse_mass[block])):
-        return inverse_mass
-    return {**inverse_mass, block: jnp.asarray(0.5 * (covariance + covariance.T))}
+    return {**inverse_mass, _global_key(inverse_mass): jnp.asarray(0.5 * (covariance + covariance.T))}
 
 
 def _release_compiled_programs():
@@ -291,9 +285,9 @@ def fit(
         ScaledPriors,
         constrained_sites,
         global_curvature,
+        global_sites,
         posterior_mode,
-        potential_energy,
-        potential_gradient,
+        potential_and_gradient,
         table_force_model,
         unconstrained_start,
     )
@@ -354,7 +348,7 @@ def fit(
         default_blocks = settings.dense_mass == SamplerSettings.dense_mass
         dense_mass = settings.dense_mass if isinstance(settings.dense_mass, bool) else list(settings.dense_mass)
         if default_blocks:
-            dense_mass = [_global_block(z)]
+            dense_mass = [global_sites(z)]
         kernel = NUTS(
             table_force_model,
             inverse_mass_matrix=inverse_mass if default_blocks else None,
@@ -377,8 +371,7 @@ def fit(
         _say(progress, f"sampling {chains} chains x ({warmup} warm-up + {draws} draws), NUTS ({chain_method}) ...")
         start = time.perf_counter()
         starts = _dispersed_starts(z, inverse_mass, chains, seed, START_DISPERSION)
-        potentials = [potential_energy(start, start_now, scaled) for start in starts]
-        gradients = [potential_gradient(start, start_now, scaled) for start in starts]
+        potentials, gradients = zip(*(potential_and_gradient(start, start_now, scaled) for start in starts))
         usable = [np.isfinite(u) and all(np.all(np.isfinite(g)) for g in gradient.values())
                   for u, gradient in zip(potentials, gradients)]
         if all(usable):

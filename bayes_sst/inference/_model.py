@@ -139,15 +139,9 @@ def _interval_site_gradient(z, d_log_density_dx, mean, sd, low, high):
     return (d_log_density_dx - (x - mean) / sd ** 2) * (high - low) * share * (1.0 - share) + 1.0 - 2.0 * share
 
 
-def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float:
-    """-log p(sites, y) + log-Jacobian terms of table_force_model at unconstrained z, in numpy.
-
-        U(z) = -[sum_s log p_s(x_s(z)) + sum_s log|dx_s/dz_s| + log p(y | alpha, rho, phi, sigma)],
-
-    the same number NumPyro's potential_energy gives (tests/test_collapsed.py compares them);
-    the truncated normal's normaliser is Phi((high - m)/s) - Phi((low - m)/s). `table` holds
-    numpy arrays (moment_table(lagged, np)).
-    """
+def _sites_and_log_prior(z: dict, priors: ScaledPriors):
+    """The sites' values at unconstrained z and sum_s log p_s(x_s(z)) + sum_s log|dx_s/dz_s|
+    (the truncated normals' normaliser is Phi((high - m)/s) - Phi((low - m)/s))."""
     alpha, log_jacobian = _interval(z["alpha"], priors.alpha_low, priors.alpha_high)
     phi, phi_jacobian = _interval(z["phi"], -PHI_BOUND, PHI_BOUND)
     spread, sigma = np.exp(np.asarray(z["spread"], dtype=float)), np.exp(np.asarray(z["sigma"], dtype=float))
@@ -165,47 +159,63 @@ def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float
     )
     jacobian = (float(log_jacobian) + float(gain_jacobian) + np.sum(z["spread"]) + np.sum(phi_jacobian)
                 + np.sum(z["sigma"]))
-    likelihood = collapsed_log_likelihood(
-        table, float(alpha), spread * np.asarray(priors.varying, dtype=float), phi, sigma,
-        np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float), np, gain=float(gain),
-    )
-    return float(-(log_prior + jacobian + likelihood))
+    sites = {"alpha": float(alpha), "phi": phi, "spread": spread, "sigma": sigma, "gain": float(gain)}
+    return sites, float(log_prior + jacobian)
 
 
-def potential_gradient(z: dict, table: MomentTable, priors: ScaledPriors) -> dict:
-    """dU/dz of potential_energy at unconstrained z, per site, in numpy.
+def _likelihood_arguments(sites: dict, priors: ScaledPriors) -> tuple:
+    """collapsed_log_likelihood's (alpha, rho, phi, sigma, prior mean, prior sd) in numpy."""
+    return (sites["alpha"], sites["spread"] * np.asarray(priors.varying, dtype=float), sites["phi"], sites["sigma"],
+            np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float))
+
+
+def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float:
+    """-log p(sites, y) + log-Jacobian terms of table_force_model at unconstrained z, in numpy.
+
+        U(z) = -[sum_s log p_s(x_s(z)) + sum_s log|dx_s/dz_s| + log p(y | alpha, rho, phi, sigma)],
+
+    the same number NumPyro's potential_energy gives (tests/test_collapsed.py compares them).
+    `table` holds numpy arrays (moment_table(lagged, np)). Where the gradient is needed too,
+    potential_and_gradient evaluates the likelihood once for both.
+    """
+    sites, log_prior = _sites_and_log_prior(z, priors)
+    likelihood = collapsed_log_likelihood(table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"])
+    return float(-(log_prior + likelihood))
+
+
+def potential_and_gradient(z: dict, table: MomentTable, priors: ScaledPriors) -> tuple[float, dict]:
+    """potential_energy at unconstrained z and its gradient dU/dz per site, in numpy, from one
+    evaluation of the collapsed likelihood (collapsed_gradient returns its value beside its
+    closed-form derivatives).
 
     With x = low + (high - low) s(z), s the logistic function, dx/dz = (high - low) s (1 - s)
     and d log|dx/dz| / dz = 1 - 2 s; for x = exp(z), a log-normal prior (loc, scale) and its
-    Jacobian together give d/dz = -(z - loc)/scale^2. The likelihood's derivatives with respect
-    to alpha, the spreads, phi and sigma are collapsed_gradient's closed form.
+    Jacobian together give d/dz = -(z - loc)/scale^2.
     """
-    def logistic(value):
-        return 1.0 / (1.0 + np.exp(-np.asarray(value, dtype=float)))
-
-    alpha = _interval(z["alpha"], priors.alpha_low, priors.alpha_high)[0]
-    phi_share = logistic(z["phi"])
-    phi = -PHI_BOUND + 2.0 * PHI_BOUND * phi_share
+    sites, log_prior = _sites_and_log_prior(z, priors)
+    likelihood, (d_alpha, d_rho, d_phi, d_sigma, _, _, d_gain) = collapsed_gradient(
+        table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"])
+    phi_share = 1.0 / (1.0 + np.exp(-np.asarray(z["phi"], dtype=float)))  # s(z) of phi's transform
     z_spread, z_sigma = np.asarray(z["spread"], dtype=float), np.asarray(z["sigma"], dtype=float)
-    spread, sigma = np.exp(z_spread), np.exp(z_sigma)
-    varying = np.asarray(priors.varying, dtype=float)
-    gain = 1.0 if priors.gain is None else float(_interval(z[GAIN_SITE], *priors.gain[2:])[0])
-    _, (d_alpha, d_rho, d_phi, d_sigma, _, _, d_gain) = collapsed_gradient(
-        table, float(alpha), spread * varying, phi, sigma,
-        np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float), np, gain=gain,
-    )
     spread_loc = np.log(np.asarray(priors.spread_median, dtype=float))
     spread_scale = np.asarray(priors.spread_log_sd, dtype=float)
     log_density = {
         "alpha": _interval_site_gradient(z["alpha"], float(d_alpha), priors.alpha_mean, priors.alpha_sd,
                                          priors.alpha_low, priors.alpha_high),
-        "spread": np.asarray(d_rho) * varying * spread - (z_spread - spread_loc) / spread_scale ** 2,
+        "spread": (np.asarray(d_rho) * np.asarray(priors.varying, dtype=float) * sites["spread"]
+                   - (z_spread - spread_loc) / spread_scale ** 2),
         "phi": np.asarray(d_phi) * 2.0 * PHI_BOUND * phi_share * (1.0 - phi_share) + 1.0 - 2.0 * phi_share,
-        "sigma": np.asarray(d_sigma) * sigma - (z_sigma - priors.noise_loc) / priors.noise_log_sd ** 2,
+        "sigma": np.asarray(d_sigma) * sites["sigma"] - (z_sigma - priors.noise_loc) / priors.noise_log_sd ** 2,
     }
     if priors.gain is not None:
         log_density[GAIN_SITE] = _interval_site_gradient(z[GAIN_SITE], float(d_gain), *priors.gain)
-    return {name: -np.asarray(value, dtype=float).reshape(np.shape(z[name])) for name, value in log_density.items()}
+    gradient = {name: -np.asarray(value, dtype=float).reshape(np.shape(z[name])) for name, value in log_density.items()}
+    return float(-(log_prior + likelihood)), gradient
+
+
+def potential_gradient(z: dict, table: MomentTable, priors: ScaledPriors) -> dict:
+    """dU/dz of potential_energy at unconstrained z, per site, in numpy (potential_and_gradient)."""
+    return potential_and_gradient(z, table, priors)[1]
 
 
 def posterior_mode(z: dict, table: MomentTable, priors: ScaledPriors, scales: dict,
@@ -237,10 +247,11 @@ def posterior_mode(z: dict, table: MomentTable, priors: ScaledPriors, scales: di
     def objective(w):
         sites = unpack(w)
         with np.errstate(all="ignore"):
-            value = potential_energy(sites, table, priors)
-            gradient = potential_gradient(sites, table, priors)
+            value, gradient = potential_and_gradient(sites, table, priors)
+        if not np.isfinite(value):
+            return np.inf, np.zeros_like(w)
         flat = np.concatenate([np.ravel(gradient[name]) for name in names]) * scale
-        if not (np.isfinite(value) and np.all(np.isfinite(flat))):
+        if not np.all(np.isfinite(flat)):
             return np.inf, np.zeros_like(w)
         return value, flat
 
@@ -255,10 +266,11 @@ def posterior_mode(z: dict, table: MomentTable, priors: ScaledPriors, scales: di
     return unpack(found.x)
 
 
-def global_sites(priors: ScaledPriors) -> tuple[str, ...]:
-    """The sites shared by all tests, in the order of the sampler's dense mass block: alpha,
-    the four spreads, and the payload's friction gain where it is sampled."""
-    return ("alpha", "spread") + (() if priors.gain is None else (GAIN_SITE,))
+def global_sites(sites) -> tuple[str, ...]:
+    """The sites shared by all tests among `sites` (names, or a dict keyed by them), in the order
+    of the sampler's dense mass block: alpha, the four spreads, and the payload's friction gain
+    where it is sampled."""
+    return ("alpha", "spread") + ((GAIN_SITE,) if GAIN_SITE in sites else ())
 
 
 def global_curvature(z: dict, table: MomentTable, priors: ScaledPriors, step: float = 1e-5) -> np.ndarray:
@@ -271,7 +283,7 @@ def global_curvature(z: dict, table: MomentTable, priors: ScaledPriors, step: fl
     independent of them), which is the safe side for the sampler's mass matrix: too small a
     scale costs leapfrog steps, too large a one makes trajectories diverge.
     """
-    names = global_sites(priors)
+    names = global_sites(z)
     coordinates = [(name, index) for name in names for index in range(int(np.size(z[name])))]
 
     def global_gradient(name, index, shift):

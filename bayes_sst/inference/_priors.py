@@ -40,7 +40,7 @@ Why kappa, and why so wide: Fmu = mu_e*N, and the study's N includes the hold-do
 whose bearings do not carry the struts' hold-down force raises it by 38 %, one whose friction
 does not depend on the load not at all. With the description's ratio taken as exact, the
 payload tests' extra friction went into the population Fmu: on 30 series of the LuGre
-generator (friction proportional to the weight alone, kappa 1.3-2.1 in the description's
+generator (friction proportional to the weight alone, kappa 1.34-1.91 in the description's
 terms) Fmu came out 0-6 % high and its 90 % interval covered the truth in 73 % of them.
 The range 0-15 spans all three cases for hold-down forces up to 14 times the deck's weight.
 

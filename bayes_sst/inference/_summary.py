@@ -8,6 +8,7 @@ import numpy as np
 
 from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.inference._mixing import rank_rhat_and_bulk_ess
+from bayes_sst.inference._priors import GAIN_SITE
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 
@@ -24,8 +25,6 @@ NUISANCE_ESS_LIMIT = 20
 # a between-test sd of the moving mass above this share is not physical: it means the sine
 # tests' per-test Me and Ke slid along their ridge (fit refits with that spread held near 2 %; summarize warns)
 IMPLAUSIBLE_MASS_SPREAD = 0.10
-# the payload's friction gain kappa (inference._priors; spelled out to keep JAX off this path)
-GAIN_SITE = "payload_friction_gain"
 
 
 def relative_between_test_sd(posterior, name: str):
@@ -121,20 +120,14 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     mixing = _mixing(tree)
     r_hat, ess_bulk = mixing["r_hat"], mixing["ess_bulk"]
     ess_tail = ess(tree, var_names=list(POPULATION), method="tail")
-    parameters = {}
-    for name in POPULATION:
+
+    def described(name: str) -> dict:
         x = posterior[name].values.ravel()
         q05, q50, q95 = np.quantile(x, [0.05, 0.5, 0.95])
-        parameters[name] = {
-            "mean": float(x.mean()),
-            "sd": float(x.std(ddof=1)),
-            "q05": float(q05),
-            "q50": float(q50),
-            "q95": float(q95),
-            "r_hat": float(r_hat[name]),
-            "ess_bulk": float(ess_bulk[name]),
-            "ess_tail": float(ess_tail[name]),
-        }
+        return {"mean": float(x.mean()), "sd": float(x.std(ddof=1)), "q05": float(q05), "q50": float(q50),
+                "q95": float(q95), "r_hat": float(r_hat[name]), "ess_bulk": float(ess_bulk[name])}
+
+    parameters = {name: {**described(name), "ess_tail": float(ess_tail[name])} for name in POPULATION}
     spread = {}
     for name in COEFFICIENTS:
         relative = relative_between_test_sd(posterior, name).values.ravel()
@@ -217,11 +210,7 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
         "seconds": seconds,
     }
     if GAIN_SITE in posterior:
-        x = posterior[GAIN_SITE].values.ravel()
-        q05, q50, q95 = np.quantile(x, [0.05, 0.5, 0.95])
-        summary[GAIN_SITE] = {"mean": float(x.mean()), "sd": float(x.std(ddof=1)), "q05": float(q05),
-                              "q50": float(q50), "q95": float(q95), "r_hat": float(r_hat[GAIN_SITE]),
-                              "ess_bulk": float(ess_bulk[GAIN_SITE])}
+        summary[GAIN_SITE] = described(GAIN_SITE)
     priors = _tree_priors(tree)
     if priors is not None:
         summary["priors"] = priors
