@@ -322,6 +322,86 @@ def test_unreachable_target_says_why(small_run):
     assert "test-to-test variation" in result.reason
 
 
+# ---------------------------------------------------------------- a series with payloads
+
+@pytest.fixture(scope="module")
+def payload_run():
+    """Twenty virtual-table tests, eight under 5 or 10 t, whose description halves the struts'
+    pre-charge: the fit's friction gain kappa is about 0.56, far from the description's 1."""
+    from dataclasses import replace
+
+    from bayes_sst.design._engine import alpha_grid_for, design_posterior
+    from bayes_sst.inference import fit, run_prepared
+    from bayes_sst.twin import default_plan, simulate
+
+    plan = [item._replace(payload_kg=(5000.0 if i % 2 else 10000.0) if i % 5 in (1, 3) else 0.0)
+            for i, item in enumerate(default_plan("sst-paper"))]
+    simulated = simulate("sst-paper", seed=6, spread=0.02, plan=plan)
+    strut = simulated.table["strut"]
+    series = replace(simulated, table={**simulated.table, "strut": {**strut, "p0_pa": 0.5 * strut["p0_pa"]}})
+    tree = fit(series, seed=2, chains=2, draws=500, warmup=300).tree
+    prepared = run_prepared(tree, series)
+    post = design_posterior(tree, prepared)
+    grid = alpha_grid_for(post.alpha)
+    columns = [regressor_columns(t, grid, post.scale, post.force_scale) for t in prepared]
+    responses = [(t.F - t.payload_kg * t.a) / post.force_scale for t in prepared]
+    return post, columns, responses, prepared
+
+
+def test_the_designs_start_is_the_runs_posterior_with_the_payloads_friction_gain(payload_run):
+    """With no test added, the mixture of every draw's Gaussian for mu is the run's posterior:
+    each draw's payload tests carry its own kappa (friction_scaling). With the description's
+    ratio in their place the Fmu interval came out 8 % narrow and its centre 0.8 sd low."""
+    from dataclasses import replace
+
+    from bayes_sst.design._engine import PARAMETERS, _half_widths_before, existing_terms, half_widths_from_draws
+
+    post, columns, responses, _ = payload_run
+    assert post.gain is not None and 0.35 < post.gain.mean() < 0.8
+    current = half_widths_from_draws(post)
+    k = PARAMETERS.index("Fmu")
+
+    def start(p):
+        old = existing_terms(p, columns, responses)
+        mean, _, _ = population(old.c, old.h, old.H, p.prior_mean, p.prior_sd)
+        half = _half_widths_before(p, old, np.zeros(p.n_draws), np.zeros((p.n_draws, 4)))
+        return half, mean[:, 3].mean()
+
+    fmu = post.mu[:, 3]
+    half, centre = start(post)
+    assert half[k] == pytest.approx(current["Fmu"], rel=0.04)
+    assert abs(centre - fmu.mean()) < 0.1 * fmu.std()
+    for name in ("Me", "Ke", "Ce"):
+        assert half[PARAMETERS.index(name)] == pytest.approx(current[name], rel=0.08), name
+    ignored, ignored_centre = start(replace(post, gain=None))
+    assert abs(ignored[k] / current["Fmu"] - 1) > 0.06
+    assert abs(ignored_centre - fmu.mean()) > 0.5 * fmu.std()
+
+
+def test_the_preposterior_keeps_every_draw_that_carries_weight(payload_run):
+    """One added test leaves the importance weights of a 20-test run nearly flat (ESS about 940
+    of 1000); the curve's mixture then takes nearly every draw and equals the mixture of all of
+    them. The 128 heaviest alone (the former rule) gave Me, Ke 10-12 % narrow."""
+    from bayes_sst.design._engine import NewTest, NoiseSource, PARAMETERS, existing_terms, preposterior_curve
+
+    post, columns, responses, prepared = payload_run
+    old = existing_terms(post, columns, responses)
+    test = candidate_test(Candidate("sine", 1.0, 0.04), n_cycles=prepared[0].window.n_cycles,
+                          sample_rate_hz=prepared[0].sample_rate_hz, coefficients=COEFFS)
+    added = [NewTest(regressor_columns(test, columns[0].grid, post.scale, post.force_scale), NoiseSource(0, 1.0))]
+    half, ess = preposterior_curve(post, old, added, n_outcomes=16, seed=0)
+    exact, _ = preposterior_curve(post, old, added, n_outcomes=16, seed=0, min_components=post.n_draws)
+    truncated, _ = preposterior_curve(post, old, added, n_outcomes=16, seed=0, weight_coverage=0.0)
+    assert np.median(ess[:, 1]) > 0.5 * post.n_draws
+    np.testing.assert_allclose(half[:, 1], exact[:, 1], rtol=0.01)
+    for name in ("Me", "Ke"):
+        i = PARAMETERS.index(name)
+        assert np.median(truncated[:, 1, i]) < 0.95 * np.median(exact[:, 1, i]), name
+    # the curve starts where the run's posterior is, whatever the seed
+    again, _ = preposterior_curve(post, old, added, n_outcomes=16, seed=5)
+    np.testing.assert_allclose(again[:, 0], half[:, 0])
+
+
 # ---------------------------------------------------------------- a small reality check (slow)
 
 @pytest.mark.slow
