@@ -362,11 +362,17 @@ def ar1_path(rng: np.random.Generator, phi: float, sigma: float, n: int) -> np.n
 
 
 def mixture_quantiles(weights: np.ndarray, means: np.ndarray, sds: np.ndarray, levels=(0.05, 0.95),
-                      iterations: int = 12, tolerance: float = 1e-10) -> np.ndarray:
+                      iterations: int = 20, tolerance: float = 1e-10) -> np.ndarray:
     """Quantiles of sum_s w_s N(m_s, sd_s^2); weights (..., S) summing to 1, means/sds (..., S);
     returns (len(levels), ...). Newton's method on the mixture CDF from the moment-matched
-    Gaussian's quantile, each step kept inside a bisection bracket so it cannot diverge; it
-    stops once every CDF is within `tolerance` of its level (Newton's steps converge in a few)."""
+    Gaussian's quantile, each step kept inside a bisection bracket so it cannot diverge. A
+    quantile whose CDF is within `tolerance` of its level is final.
+
+    Why final: at convergence the bracket closes onto x, and a Newton step that rounds to x
+    itself fails the strict bracket test; the bisection fallback then threw the converged x
+    to the middle of its bracket. In a batch every element went on iterating until the last
+    did, so some ended far off: on the example's design, 296 of 576 calls returned a CDF
+    0.2-1.7 % away from its level (the 5 % quantile read at 3.3-6.7 %)."""
     centre = np.sum(weights * means, axis=-1)
     spread = np.sqrt(np.maximum(np.sum(weights * (sds**2 + means**2), axis=-1) - centre**2, 0.0))
     out = []
@@ -377,13 +383,14 @@ def mixture_quantiles(weights: np.ndarray, means: np.ndarray, sds: np.ndarray, l
         for _ in range(iterations):
             z = (x[..., None] - means) / sds
             error = np.sum(weights * ndtr(z), axis=-1) - level
-            if np.all(np.abs(error) < tolerance):
+            open_ = np.abs(error) >= tolerance
+            if not np.any(open_):
                 break
             density = np.sum(weights * np.exp(-0.5 * z * z) / (sds * np.sqrt(2 * np.pi)), axis=-1)
-            lo = np.where(error < 0, x, lo)
-            hi = np.where(error < 0, hi, x)
+            lo = np.where(open_ & (error < 0), x, lo)
+            hi = np.where(open_ & (error > 0), x, hi)
             step = x - error / np.maximum(density, 1e-300)
-            x = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
+            x = np.where(open_, np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi)), x)
         out.append(x)
     return np.stack(out)
 
