@@ -372,24 +372,34 @@ def payload_run():
     return post, columns, responses, prepared
 
 
+def _one_added_test(post, columns, prepared):
+    """A 1 Hz, 40 mm sine as the engine's one added test, its residual that of recorded test 0."""
+    from bayes_sst.design._engine import NewTest, NoiseSource
+
+    test = candidate_test(Candidate("sine", 1.0, 0.04), n_cycles=prepared[0].window.n_cycles,
+                          sample_rate_hz=prepared[0].sample_rate_hz, coefficients=COEFFS)
+    return [NewTest(regressor_columns(test, columns[0].grid, post.scale, post.force_scale), NoiseSource(0, 1.0))]
+
+
 def test_the_designs_start_is_the_runs_posterior_with_the_payloads_friction_gain(payload_run):
     """With no test added, the mixture of every draw's Gaussian for mu is the run's posterior:
     each draw's payload tests carry its own kappa (friction_scaling). With the description's
     ratio in their place the Fmu interval came out 8 % narrow and its centre 0.8 sd low."""
     from dataclasses import replace
 
-    from bayes_sst.design._engine import PARAMETERS, _half_widths_before, existing_terms, half_widths_from_draws
+    from bayes_sst.design._engine import PARAMETERS, existing_terms, half_widths_from_draws, preposterior_curve
 
-    post, columns, responses, _ = payload_run
+    post, columns, responses, prepared = payload_run
     assert post.gain is not None and 0.35 < post.gain.mean() < 0.8
     current = half_widths_from_draws(post)
     k = PARAMETERS.index("Fmu")
+    added = _one_added_test(post, columns, prepared)
 
     def start(p):
         old = existing_terms(p, columns, responses)
         mean, _, _ = population(old.c, old.h, old.H, p.prior_mean, p.prior_sd)
-        half = _half_widths_before(p, old, np.zeros(p.n_draws), np.zeros((p.n_draws, 4)))
-        return half, mean[:, 3].mean()
+        half, _ = preposterior_curve(p, old, added, n_outcomes=1, seed=0)
+        return half[0, 0], mean[:, 3].mean()
 
     fmu = post.mu[:, 3]
     half, centre = start(post)
@@ -406,13 +416,11 @@ def test_the_preposterior_keeps_every_draw_that_carries_weight(payload_run):
     """One added test leaves the importance weights of a 20-test run nearly flat (ESS about 940
     of 1000); the curve's mixture then takes nearly every draw and equals the mixture of all of
     them. The 128 heaviest alone (the former rule) gave Me, Ke 10-12 % narrow."""
-    from bayes_sst.design._engine import NewTest, NoiseSource, PARAMETERS, existing_terms, preposterior_curve
+    from bayes_sst.design._engine import PARAMETERS, existing_terms, preposterior_curve
 
     post, columns, responses, prepared = payload_run
     old = existing_terms(post, columns, responses)
-    test = candidate_test(Candidate("sine", 1.0, 0.04), n_cycles=prepared[0].window.n_cycles,
-                          sample_rate_hz=prepared[0].sample_rate_hz, coefficients=COEFFS)
-    added = [NewTest(regressor_columns(test, columns[0].grid, post.scale, post.force_scale), NoiseSource(0, 1.0))]
+    added = _one_added_test(post, columns, prepared)
     half, ess = preposterior_curve(post, old, added, n_outcomes=16, seed=0)
     exact, _ = preposterior_curve(post, old, added, n_outcomes=16, seed=0, min_components=post.n_draws)
     truncated, _ = preposterior_curve(post, old, added, n_outcomes=16, seed=0, weight_coverage=0.0)

@@ -43,6 +43,7 @@ import numpy as np
 from scipy.special import erfinv, ndtr
 
 from bayes_sst.inference import _smalllinalg as sl
+from bayes_sst.inference._collapsed import load_share, payload_friction_factor
 from bayes_sst.inference._priors import GAIN_SITE
 from bayes_sst.inference._statistics import (
     ALPHA_MAX,
@@ -283,7 +284,7 @@ def friction_scaling(post: DesignPosterior, columns: TestColumns) -> np.ndarray 
     load = 1.0 if columns.source is None else float(columns.source.friction_load)
     if post.gain is None or load == 1.0:
         return None
-    return 1.0 + (post.gain - 1.0) * (load - 1.0) / load
+    return payload_friction_factor(post.gain, load_share(load))
 
 
 def _scale_row_and_column(M: np.ndarray, index: int, factors: np.ndarray | None) -> np.ndarray:
@@ -482,7 +483,6 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
     else:
         v_alpha, gain = np.zeros((N + 1, S)), np.zeros((N + 1, S, 4))
     n_pairs = np.array([test.columns.n_pairs for test in tests])
-    before = _half_widths_before(post, old, v_alpha[0], gain[0])
     grid = tests[0].columns.grid if tests else np.array([0.0, 1.0])
     if any(not np.array_equal(test.columns.grid, grid) for test in tests):
         raise ValueError("all added tests must share one alpha grid")
@@ -516,14 +516,19 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
         extra = np.maximum(v_alpha - alpha_var[:, None], 0.0)  # (N+1, S)
         variances = cov + extra[..., None] * gain**2  # (N+1, S, 4)
         # the quantiles of the mixture from its heaviest components: once the added tests
-        # speak, a few dozen draws carry nearly all the weight (row 0, no test added, is
-        # _half_widths_before's); rows are taken in groups of like size, for speed
+        # speak, a few dozen draws carry nearly all the weight; rows are taken in groups of
+        # like size, for speed. Row 0 (nothing added) has equal weights and so takes every
+        # draw, the same mixture for every outcome and both curves (a fixed number of the
+        # heaviest draws, tied there, was a random subset: on a 20-test series the two
+        # curves' starting points differed by 12 %, Fmu 2.82 % and 2.50 % for a posterior
+        # half-width of 2.80 %)
         ranked = np.argsort(-w, axis=-1)
         covered = np.cumsum(np.take_along_axis(w, ranked, axis=-1), axis=-1)
         needed = np.sum(covered < weight_coverage, axis=-1) + 1
         sizes = np.minimum(S, min_components * 2 ** np.ceil(np.log2(np.maximum(needed / min_components, 1.0))))
-        for size in np.unique(sizes[1:]):
-            rows = 1 + np.flatnonzero(sizes[1:] == size)
+        sizes[0] = S
+        for size in np.unique(sizes):
+            rows = np.flatnonzero(sizes == size)
             top = ranked[rows, :int(size)]  # (n, K)
             wk = np.take_along_axis(w[rows], top, axis=-1)
             wk /= wk.sum(axis=-1, keepdims=True)
@@ -536,31 +541,7 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
             alpha_sd = np.sqrt(ek + 1e-12 * alpha_mean[rows, None] ** 2)
             qa = mixture_quantiles(wk, post.alpha[top], alpha_sd)
             half[r][rows, alpha_index] = (qa[1] - qa[0]) / 2 / np.abs(alpha_mean[rows])
-        half[r][0] = before
     return half, ess
-
-
-def _half_widths_before(post: DesignPosterior, old: Terms, v_alpha: np.ndarray, gain: np.ndarray) -> np.ndarray:
-    """Relative half-widths (5,) before any added test: the mixture of every draw's Gaussian
-    with equal weights (and alpha's Laplace top-up, see preposterior_curve).
-
-    Why every draw: with no test added the weights tie, and a fixed number of the heaviest
-    draws (what every row once took) is a random subset; on a 20-test series the two curves'
-    starting points, drawn with different seeds, differed by 12 % (Fmu 2.82 % and 2.50 % for
-    a posterior half-width of 2.80 %)."""
-    mean, cov, _ = population(old.c, old.h, old.H, post.prior_mean, post.prior_sd)  # (S, 4)
-    S = post.n_draws
-    weights = np.full(S, 1.0 / S)
-    alpha_mean = float(np.mean(post.alpha))
-    extra = np.maximum(v_alpha - np.var(post.alpha), 0.0)  # (S,)
-    variances = cov + extra[:, None] * gain**2
-    q = mixture_quantiles(weights[None, :], mean.T, np.sqrt(variances.T))  # (2, 4)
-    centre = mean.mean(axis=0)
-    out = np.empty(len(PARAMETERS))
-    out[[PARAMETERS.index(name) for name in COEFFICIENTS]] = (q[1] - q[0]) / 2 / np.abs(centre)
-    qa = mixture_quantiles(weights, post.alpha, np.sqrt(extra + 1e-12 * alpha_mean**2))
-    out[PARAMETERS.index("alpha")] = (qa[1] - qa[0]) / 2 / abs(alpha_mean)
-    return out
 
 
 def fisher_information(post: DesignPosterior, columns: TestColumns, noise: "NoiseSource | int") -> np.ndarray:

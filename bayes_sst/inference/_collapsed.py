@@ -87,12 +87,22 @@ class MomentTable(NamedTuple):
 SIGN = 4  # index of the Coulomb column in z
 
 
+def load_share(friction_load):
+    """w_j = (L_j - 1)/L_j of bearing-load ratios L_j (signals.friction_load)."""
+    return 1.0 - 1.0 / np.asarray(friction_load, dtype=float)
+
+
+def payload_friction_factor(gain, share):
+    """s = 1 + (kappa - 1) w: the factor on a Coulomb column L filter(sign v) that makes it
+    (1 + kappa (L - 1)) filter(sign v), w = load_share(L)."""
+    return 1.0 + (gain - 1.0) * share
+
+
 def friction_factors(table: MomentTable, gain, xp=jnp):
     """s_j = 1 + (kappa - 1) w_j, (J,) (or (draws, J) for a gain per draw (draws,))."""
     if table.load_share is None:
         return None
-    gain = xp.asarray(gain)
-    return 1.0 + (gain[..., None] - 1.0) * table.load_share
+    return payload_friction_factor(xp.asarray(gain)[..., None], table.load_share)
 
 
 def _sign_column(factors):
@@ -140,7 +150,7 @@ def compact_table(moments, damping_cross, damping_gram, n_pairs, alpha_grid, xp=
         alpha_start=float(alpha_grid[0]),
         alpha_step=float(alpha_grid[1] - alpha_grid[0]),
         noise_floor=float(noise_floor),
-        load_share=None if friction_load is None else xp.asarray(1.0 - 1.0 / np.asarray(friction_load, dtype=float)),
+        load_share=None if friction_load is None else xp.asarray(load_share(friction_load)),
     )
 
 
