@@ -257,13 +257,14 @@ def design(
 
     fisher_pick = np.unique(np.linspace(0, post.n_draws - 1, min(FISHER_DRAWS, post.n_draws)).round().astype(int))
     fpost = post.subset(fisher_pick)
-    base = sum(fisher_information(fpost, cols, j) for j, cols in enumerate(old_columns))
+    # every draw's information is its own, so the search's draws take their rows of the whole set's
+    base_all = sum(fisher_information(post, cols, j) for j, cols in enumerate(old_columns))
+    base = base_all[fisher_pick]
     cand_info = np.stack([fisher_information(fpost, built[c], twins[c]) for c in accepted])
     chosen, fisher_path = greedy_design(fpost, base, cand_info, targets, max_tests)
     recommended = [accepted[i] for i in chosen]
     say(f"greedy search done ({time.perf_counter() - started:.1f} s)")
 
-    base_all = sum(fisher_information(post, cols, j) for j, cols in enumerate(old_columns))
     half_rec, ess_rec = preposterior_curve(post, old, [NewTest(built[c], twins[c]) for c in recommended],
                                            n_outcomes=n_outcomes, seed=seed, base_info=base_all)
     say(f"preposterior of the recommended tests done ({time.perf_counter() - started:.1f} s)")
