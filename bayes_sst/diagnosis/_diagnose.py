@@ -628,6 +628,13 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
     return summary, [(s.effect, s.setting) for s in selected], {"tests": tests, "base": base}, scorer
 
 
+def _oil_selectable(oil: dict[str, Any]) -> bool:
+    """The oil column's rule: score and z as the force effects', and a resonance inside the
+    measured band with a peak (bayes_sst.diagnosis._oil)."""
+    return (oil["score"] >= MIN_SCORE and oil["z"] is not None and oil["z"] >= Z_SELECT
+            and not oil["at_bound"])
+
+
 def _broadband_only(series: Series, started: float) -> Diagnosis:
     """A series with fewer than MIN_PERIODIC_TESTS periodic tests: only the oil_column check
     of its broadband tests applies."""
@@ -635,7 +642,7 @@ def _broadband_only(series: Series, started: float) -> Diagnosis:
     if oil is None:
         raise ValueError(f"series {series.name!r} has neither periodic nor broadband tests to diagnose")
     oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
-    chosen = oil["score"] >= MIN_SCORE and oil["z"] is not None and oil["z"] >= Z_SELECT
+    chosen = _oil_selectable(oil)
     entry = {k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor", "shrink")}
     return Diagnosis(
         series_name=series.name, selected=["oil_column"] if chosen else [], ranking=[entry], where=[],
@@ -819,7 +826,7 @@ def diagnose(
         ranking[-1]["test_elpd_diff"] = []
         ranking.sort(key=lambda r: -r["score"])
         oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
-        if oil["score"] >= MIN_SCORE and oil["z"] is not None and oil["z"] >= Z_SELECT:
+        if _oil_selectable(oil):
             say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f})")
             selected_names.append("oil_column")
             oil["selected"] = True

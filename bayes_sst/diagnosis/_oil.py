@@ -1,15 +1,31 @@
-"""The oil_column check: the command-to-motion response of broadband tests against a rigid table.
+"""The oil_column check: the command-to-motion response of broadband tests against a table
+whose loop only lags.
 
 Per payload, the H1 frequency response H(f) of the broadband tests (bayes_sst.oil) over the
-usable bins (band, coherence >= min_coherence). Base: a rigid table, H = g (one real gain).
-With the effect: H = g*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f), (f_o, zeta_o) profiled on the
-effect's grid, g by weighted least squares. Each bin's complex error has sd sigma_k =
-eps_k*|H_k| per component (eps the random error of |H1|), so
+usable bins (band, coherence >= min_coherence). Base: a rigid table in a servo loop,
+
+    H0 = g*exp(-2j*pi*f*tau)/(1 + j*f/f_c),
+
+a loop delay tau and a first-order roll-off f_c (f_c = inf: none), profiled on grids, g by
+weighted least squares. A flat H = g was the base until 2026-11-27: every closed loop lags, and
+on an independent generator's clean series (valve_generator.py, seed 5: 5 ms of phase lag per
+10 Hz, no resonance in the 0.5-30 Hz band) the resonance model took that lag as an oil column
+at 43 Hz with damping 0.8, its grid's top, 644,000 +- 78,000 nats. With the effect:
+
+    H = g*exp(-2j*pi*f*tau)*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f),
+
+(f_o, zeta_o, tau) profiled (resonance_fit). The twin's closed loop (tests/test_diagnosis.py) is
+described well by it: its |H| peaks at f_o*sqrt(1 - 2 zeta_o^2) within 1 % of the true
+closed-loop resonance (with the roll-off in the effect's model as well, 15 % off at 25 t). Each bin's complex error has sd sigma_k = eps_k*|H_k| per
+component (eps the random error of |H1|), so
 
     log L = -1/2 sum_k |H_k - model_k|^2/sigma_k^2,   score = log L(effect) - log L(base),
 
 and score_se = sqrt(n*var(d_k)*c) with d_k the per-bin differences and c = 1 + 2*sum_j rho_j
 the Hann/50 % overlap correlation of neighbouring bins (bayes_sst.oil._frf.bin_error_correlation).
+A resonance is only claimed where it was measured: a best f_o outside the usable bins, or a
+damping at the grid's top (0.8, no peak: any zeta above 0.71 is a roll-off), is `at_bound`
+and not selectable.
 """
 
 from __future__ import annotations
@@ -26,9 +42,55 @@ BAND_HZ = (2.0, 80.0)
 MIN_COHERENCE = 0.5
 
 
+DELAYS_S = np.arange(0.0, 0.0301, 0.00025)
+ROLL_OFFS_HZ = np.concatenate([[np.inf], np.geomspace(2.0, 300.0, 48)])
+
+
 def _gain(h, m, w):
-    """Weighted least-squares real gain g of h ~ g*m."""
-    return float(np.sum(w * np.real(np.conj(m) * h)) / np.sum(w * np.abs(m) ** 2))
+    """Weighted least-squares real gain g of h ~ g*m (m (..., n): one gain per leading index)."""
+    return np.sum(w * np.real(np.conj(m) * h), axis=-1) / np.sum(w * np.abs(m) ** 2, axis=-1)
+
+
+def _best(h, w, shapes) -> tuple[int, float, complex]:
+    """The shape (K, n) whose real-gain fit to h has the least chi^2: (index, chi^2, gain)."""
+    g = _gain(h, shapes, w)
+    chi2 = np.sum(np.abs(h - g[:, None] * shapes) ** 2 * w, axis=-1)
+    k = int(np.argmin(chi2))
+    return k, float(chi2[k]), float(g[k])
+
+
+def _delays(f):
+    """exp(-2j*pi*f*tau) for every tau of DELAYS_S, (T, n)."""
+    return np.exp(-2j * np.pi * DELAYS_S[:, None] * f[None, :])
+
+
+def _roll_off(f, f_c):
+    """1/(1 + j f/f_c), 1 for f_c = inf."""
+    return 1.0 / (1.0 + 1j * f / f_c)
+
+
+def loop_base(h, f, w, times=1.0) -> tuple[dict[str, float], float, np.ndarray]:
+    """The best (tau, f_c) of g*times*exp(-2j*pi*f*tau)/(1 + j*f/f_c) (times = 1: the base):
+    settings, chi^2 and model values."""
+    lags = _roll_off(f[None, :], ROLL_OFFS_HZ[:, None])  # (R, n)
+    shapes = (_delays(f)[:, None, :] * (lags * times)[None, :, :]).reshape(-1, len(f))
+    k, chi2, g = _best(h, w, shapes)
+    t, r = divmod(k, len(ROLL_OFFS_HZ))
+    return {"delay_s": float(DELAYS_S[t]), "roll_off_hz": float(ROLL_OFFS_HZ[r])}, chi2, g * shapes[k]
+
+
+def resonance_fit(h, f, w, effect: OilColumn):
+    """The effect's model g*exp(-2j*pi*f*tau)*resonance(f_o, zeta_o), (f_o, zeta_o, tau) profiled.
+    Returns (setting, tau, chi^2, model values, the (f_o, zeta_o) profile [(setting, chi^2)])."""
+    delays = _delays(f)
+    best, profile = None, []
+    for setting in effect.settings():
+        shapes = delays * effect.frf(f, setting["oil_frequency"], setting["oil_damping"])[None, :]
+        k, chi2, g = _best(h, w, shapes)
+        profile.append((setting, chi2))
+        if best is None or chi2 < best[2]:
+            best = (setting, float(DELAYS_S[k]), chi2, g * shapes[k])
+    return (*best, profile)
 
 
 def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[str, Any] | None:
@@ -54,34 +116,34 @@ def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[st
             continue
         h, f, sigma = frf.h[usable], f[usable], (eps * np.abs(frf.h))[usable]
         w = 1.0 / sigma**2
-        g0 = _gain(h, np.ones_like(h), w)
-        r0 = np.abs(h - g0) ** 2 * w
-        best = None
-        profile = []
-        for setting in effect.settings():
-            m = effect.frf(f, setting["oil_frequency"], setting["oil_damping"])
-            g = _gain(h, m, w)
-            chi2 = float(np.sum(np.abs(h - g * m) ** 2 * w))
-            profile.append((setting, chi2))
-            if best is None or chi2 < best[1]:
-                best = (setting, chi2, g, m)
-        setting, chi2, g, m = best
-        r1 = np.abs(h - g * m) ** 2 * w
+        base_setting, chi2_base, base_model = loop_base(h, f, w)
+        r0 = np.abs(h - base_model) ** 2 * w
+        setting, delay, chi2, model, profile = resonance_fit(h, f, w, effect)
+        r1 = np.abs(h - model) ** 2 * w
         diffs.append(0.5 * (r0 - r1))
         chis = np.array([c for _, c in profile])
         weights = np.exp(-0.5 * (chis - chis.min()))
         weights /= weights.sum()
         fo = np.array([s["oil_frequency"] for s, _ in profile])
         mean = float(weights @ fo)
+        outside = not (f.min() <= setting["oil_frequency"] <= f.max())
+        top = setting["oil_damping"] >= max(effect.grid["oil_damping"])
         per_payload.append({
             "payload_kg": payload, "tests": [r.spec.id for r in records], "bins": int(usable.sum()),
+            "band_hz": [float(f.min()), float(f.max())],
             "oil_frequency": {"mean": float(setting["oil_frequency"]),
                               "sd": float(math.sqrt(max(weights @ (fo - mean) ** 2, 0.0)))},
             "oil_damping": {"mean": float(setting["oil_damping"]), "sd": 0.0},
-            "gain": g, "base_gain": g0,
+            # where |H| peaks, f_o*sqrt(1 - 2 zeta^2): what a measured frequency response shows
+            "peak_frequency_hz": (float(setting["oil_frequency"] * math.sqrt(1.0 - 2.0 * setting["oil_damping"] ** 2))
+                                  if setting["oil_damping"] ** 2 < 0.5 else None),
+            "delay_s": delay, "base": base_setting,
+            "at_bound": bool(outside or top),
+            "bound": "frequency outside the measured band" if outside else ("damping at the grid's top (no peak)"
+                                                                            if top else None),
         })
-        misfit_before.append(np.abs(h - g0) ** 2)
-        misfit_after.append(np.abs(h - g * m) ** 2)
+        misfit_before.append(np.abs(h - base_model) ** 2)
+        misfit_after.append(np.abs(h - model) ** 2)
         floor_sq.append(sigma**2 * 2.0)
         if correlation is None:
             rho = bin_error_correlation(frf.segment_samples)
@@ -100,5 +162,6 @@ def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[st
         "params": {"oil_frequency": head["oil_frequency"], "oil_damping": head["oil_damping"]},
         "per_payload": per_payload, "equation": effect.equation, "physics": effect.physics,
         "domain": "command-to-motion frequency response of the broadband tests",
-        "rms_before": before, "rms_after": after, "noise_floor": floor, "at_bound": False,
+        "rms_before": before, "rms_after": after, "noise_floor": floor,
+        "at_bound": any(p["at_bound"] for p in per_payload),
     }

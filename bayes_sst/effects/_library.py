@@ -450,15 +450,16 @@ FORCE_EFFECTS: tuple[Effect, ...] = (
 class OilColumn(Effect):
     """Oil-column compliance in the actuators: a resonance between command and deck motion,
 
-        H(f) = a(f)/a_cmd(f) = g*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f),
+        H(f) = a(f)/a_cmd(f) = g*exp(-2j*pi*f*tau)*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f),
 
-    against the base model's rigid, flat response H = g. Seen in broadband tests (the H1
-    frequency response of bayes_sst.oil). Prior: f_o log-uniform 5-80 Hz, zeta_o 0.02-0.8, g > 0.
+    against the base model's rigid table in a lagging loop, H = g*exp(-2j*pi*f*tau)/(1 + j*f/f_c)
+    (bayes_sst.diagnosis._oil). Seen in broadband tests (the H1 frequency response of
+    bayes_sst.oil). Prior: f_o log-uniform 5-80 Hz, zeta_o 0.02-0.8, tau 0-30 ms, g > 0.
     """
 
     name: str = "oil_column"
     physics: str = "oil-column compliance: a resonance between command and deck motion"
-    equation: str = "H(f) = g*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f)"
+    equation: str = "H(f) = g*exp(-2j*pi*f*tau)*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f)"
     parameters: tuple[Parameter, ...] = (
         Parameter("oil_frequency", "Hz", "log-uniform 5-80 Hz"),
         Parameter("oil_damping", "-", "log-uniform 0.02-0.8"),

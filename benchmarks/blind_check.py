@@ -1,19 +1,26 @@
-"""Fit and diagnose the second independent generator's series (benchmarks/lugre_generator.py):
-six clean series and, for each of six effects, a clear and a weak case.
+"""Fit and diagnose the blind generators' series: six clean series and, for each of six
+effects, a clear and a weak case, from benchmarks/lugre_generator.py (LuGre friction, written
+2026-11-26) or benchmarks/valve_generator.py (servo-valve and two-chamber cylinder, DAQ
+anti-alias filter, ADC and mains hum, written 2026-11-27), each by a helper session that saw
+the data format and the physics but not this package.
 
-    PYTHONPATH=. .venv/bin/python benchmarks/lugre_check.py --dir /tmp/lugre \
+    PYTHONPATH=. .venv/bin/python benchmarks/blind_check.py --generator lugre --dir /tmp/lugre \
         --out benchmarks/results/lugre_check.json
+    PYTHONPATH=. .venv/bin/python benchmarks/blind_check.py --generator valve --dir /tmp/valve \
+        --out benchmarks/results/valve_check.json
 
-Series missing from --dir are generated first (20-40 s each). Per series: each population
+Series missing from --dir are generated first (10-40 s each). Per series: each population
 value's error and z = (mean - truth)/sd, whether the 90 % interval covers it, the diagnosis's
-selection and its three best-ranked effects. The generator scales a payload test's friction
-by (1 + m_payload g/(Me g)), leaving out the struts' hold-down force that the package (and the
-study) count in the normal load, so series with payload tests carry that disagreement.
+selection and its three best-ranked effects. The LuGre generator scales a payload test's
+friction by (1 + m_payload g/(Me g)), leaving out the struts' hold-down force that the package
+(and the study) count in the normal load, so its series with payload tests carry that
+disagreement (the fit's kappa takes it up).
 """
 
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import sys
@@ -22,26 +29,32 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
-CASES = (
+EFFECT_CASES = ("stiction", "nonlinear_stiffness", "position_friction", "specimen", "channel_delay", "drift")
+SHORT = {"nonlinear_stiffness": "cubic", "position_friction": "hinge", "channel_delay": "delay"}
+# (case, seed, effect, size, record rate or None)
+LUGRE_CASES = (
     ("clean_0", 0, None, None, 200), ("clean_1", 1, None, None, 256), ("clean_2", 2, None, None, 500),
     ("clean_3", 3, None, None, 1000), ("clean_4", 4, None, None, 256), ("clean_5", 5, None, None, 500),
-    ("stiction_strong", 10, "stiction", "strong", None), ("stiction_weak", 11, "stiction", "weak", None),
-    ("cubic_strong", 12, "nonlinear_stiffness", "strong", None), ("cubic_weak", 13, "nonlinear_stiffness", "weak", None),
-    ("hinge_strong", 14, "position_friction", "strong", None), ("hinge_weak", 15, "position_friction", "weak", None),
-    ("specimen_strong", 16, "specimen", "strong", None), ("specimen_weak", 17, "specimen", "weak", None),
-    ("delay_strong", 18, "channel_delay", "strong", None), ("delay_weak", 19, "channel_delay", "weak", None),
-    ("drift_strong", 20, "drift", "strong", None), ("drift_weak", 21, "drift", "weak", None),
-)
+) + tuple((f"{SHORT.get(e, e)}_{size}", 10 + 2 * i + k, e, size, None)
+          for i, e in enumerate(EFFECT_CASES) for k, size in enumerate(("strong", "weak")))
+# the valve generator draws its record rate from the seed
+VALVE_CASES = tuple((f"clean_{s}", s, None, None, None) for s in range(6)) + tuple(
+    (f"{SHORT.get(e, e)}_{size}", 10 + 2 * i + k, e, size, None)
+    for i, e in enumerate(EFFECT_CASES) for k, size in enumerate(("strong", "weak")))
+GENERATORS = {"lugre": ("lugre_generator", LUGRE_CASES), "valve": ("valve_generator", VALVE_CASES)}
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--dir", default="/tmp/bayes_sst_lugre")
+    parser.add_argument("--generator", choices=sorted(GENERATORS), default="lugre")
+    parser.add_argument("--dir", default=None, help="series folder (default /tmp/bayes_sst_GENERATOR)")
     parser.add_argument("--out", default=None)
     parser.add_argument("--only", nargs="*", default=None, help="case names to run")
     args = parser.parse_args()
     sys.path.insert(0, str(HERE))
-    from lugre_generator import generate
+    module, cases = GENERATORS[args.generator]
+    generate = __import__(module).generate
+    base_dir = args.dir or f"/tmp/bayes_sst_{args.generator}"
 
     from bayes_sst.diagnosis import diagnose
     from bayes_sst.inference import fit
@@ -49,13 +62,15 @@ def main():
     from bayes_sst.io import load_series
 
     rows = []
-    for name, seed, effect, size, rate in CASES:
+    for name, seed, effect, size, rate in cases:
         if args.only and name not in args.only:
             continue
-        folder = os.path.join(args.dir, name)
+        folder = os.path.join(base_dir, name)
         if not os.path.exists(os.path.join(folder, "truth.json")):
-            options = dict(effect=effect, size=size) if effect else dict(rate=rate)
-            generate(seed, folder, name=name, verbose=False, **options)
+            options = dict(effect=effect, size=size) if effect else ({} if rate is None else dict(rate=rate))
+            if "name" in inspect.signature(generate).parameters:
+                options["name"] = name
+            generate(seed, folder, verbose=False, **options)
         truth = json.load(open(os.path.join(folder, "truth.json")))
         series = load_series(folder)
         started = time.perf_counter()
