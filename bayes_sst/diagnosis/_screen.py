@@ -72,6 +72,11 @@ def _effect_coefficients(fit: ModelFit, k: int) -> tuple[np.ndarray, np.ndarray]
 REFINE_PEAKS = 3
 
 
+def _physical(effect: Effect, coef: np.ndarray, signs: dict[str, float]) -> bool:
+    """Whether every signed coefficient has its physical sign."""
+    return all(sign * coef[effect.coefficients.index(name)] >= 0 for name, sign in signs.items())
+
+
 def _local_peaks(profile, logm: np.ndarray, count: int) -> list:
     """The settings of the `count` highest coarse-profile points that beat every neighbour
     differing in one grid parameter by one step (the best point always)."""
@@ -106,11 +111,18 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     grid_edge = {key: ("lower" if best_setting[key] <= min(values) else "upper")
                  for key, values in effect.grid.items()
                  if len(values) > 2 and best_setting[key] in (min(values), max(values))}
-    # around the REFINE_PEAKS best local maxima of the coarse profile, not only the best: a
-    # sharp resonance between two coarse points can lose to a broad misfit elsewhere (a 1.4 t
-    # specimen at 14.8 Hz, 3 % damping, on the valve generator's seed 19: coarse best 5.1 Hz
-    # with a negative mass, the true one 224 nats behind at 15.8 Hz)
-    for start in _local_peaks(profile, logm, REFINE_PEAKS):
+    # a coarse best whose coefficients have the wrong sign is the base model (at_bound below),
+    # and the physical optimum is elsewhere: then the best physical local maxima are refined
+    # too. A sharp resonance between two coarse points lost to such a best (a 1.4 t specimen at
+    # 14.8 Hz, 3 % damping, on the valve generator's seed 19: coarse best 5.1 Hz with a negative
+    # mass, the true one 224 nats behind at 15.8 Hz). Refining further peaks of a physical best
+    # as well raised the max over noise: a 72 kg "specimen" beside a 3 ms delay on the twin
+    starts = [best_setting]
+    signs = effect.coefficient_signs(dict(current.base(), **scorer.base_scale))
+    if k and not _physical(effect, profile_coef[int(np.argmax(logm))][0], signs):
+        physical = [i for i in range(len(profile)) if _physical(effect, profile_coef[i][0], signs)]
+        starts += _local_peaks([profile[i] for i in physical], logm[physical], REFINE_PEAKS - 1)
+    for start in starts:
         for setting in effect.refine(start):
             lm = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread).log_marginal
             if lm > best_logm:
