@@ -906,3 +906,19 @@ def test_the_twins_oil_column_is_found_at_its_closed_loop_resonance():
         # (the flat base's -3.4 % and +1.0 %: without the loop's delay f_o is the peak's stand-in)
         assert entry["peak_frequency_hz"] == pytest.approx(truth["resonance_hz"], rel=0.03)
         assert entry["oil_frequency"]["mean"] == pytest.approx(truth["resonance_hz"], rel=0.2)
+
+
+def test_local_peaks_of_a_coarse_profile_are_its_local_maxima_best_first():
+    from bayes_sst.diagnosis._screen import _local_peaks
+
+    frequencies, dampings = [1.0, 2.0, 4.0, 8.0, 16.0], [0.02, 0.05]
+    # log marginal over frequency: a broad hill at 2 Hz and a sharp one at 16 Hz, 5 nats lower
+    by_frequency = {1.0: -8.0, 2.0: 0.0, 4.0: -9.0, 8.0: -20.0, 16.0: -5.0}
+    profile = [({"f": f, "z": z}, by_frequency[f] - (3.0 if z == 0.05 else 0.0))
+               for f in frequencies for z in dampings]
+    logm = np.array([lm for _, lm in profile])
+    assert _local_peaks(profile, logm, 3) == [{"f": 2.0, "z": 0.02}, {"f": 16.0, "z": 0.02}]
+    assert _local_peaks(profile, logm, 1) == [{"f": 2.0, "z": 0.02}]
+    # without the best point (as when it is unphysical) the next maxima come first
+    rest = [i for i, (st, _) in enumerate(profile) if st["f"] != 2.0]
+    assert _local_peaks([profile[i] for i in rest], logm[rest], 2) == [{"f": 16.0, "z": 0.02}, {"f": 1.0, "z": 0.02}]

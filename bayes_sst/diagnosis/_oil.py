@@ -14,10 +14,11 @@ at 43 Hz with damping 0.8, its grid's top, 644,000 +- 78,000 nats. With the effe
 
     H = g*exp(-2j*pi*f*tau)*f_o^2/(f_o^2 - f^2 + 2j*zeta_o*f_o*f),
 
-(f_o, zeta_o, tau) profiled (resonance_fit). The twin's closed loop (tests/test_diagnosis.py) is
-described well by it: its |H| peaks at f_o*sqrt(1 - 2 zeta_o^2) within 1 % of the true
-closed-loop resonance (with the roll-off in the effect's model as well, 15 % off at 25 t). Each bin's complex error has sd sigma_k = eps_k*|H_k| per
-component (eps the random error of |H1|), so
+(f_o, zeta_o, tau) profiled (resonance_fit). The twin's closed loop (tests/test_diagnosis.py)
+is described well by it: its |H| peaks at f_o*sqrt(1 - 2 zeta_o^2) within 1 % of the true
+closed-loop resonance (with the roll-off in the effect's model as well, 15 % off at 25 t).
+Each bin's complex error has sd sigma_k = eps_k*|H_k| per component (eps the random error of
+|H1|), so
 
     log L = -1/2 sum_k |H_k - model_k|^2/sigma_k^2,   score = log L(effect) - log L(base),
 
@@ -51,7 +52,7 @@ def _gain(h, m, w):
     return np.sum(w * np.real(np.conj(m) * h), axis=-1) / np.sum(w * np.abs(m) ** 2, axis=-1)
 
 
-def _best(h, w, shapes) -> tuple[int, float, complex]:
+def _best(h, w, shapes) -> tuple[int, float, float]:
     """The shape (K, n) whose real-gain fit to h has the least chi^2: (index, chi^2, gain)."""
     g = _gain(h, shapes, w)
     chi2 = np.sum(np.abs(h - g[:, None] * shapes) ** 2 * w, axis=-1)
@@ -69,11 +70,11 @@ def _roll_off(f, f_c):
     return 1.0 / (1.0 + 1j * f / f_c)
 
 
-def loop_base(h, f, w, times=1.0) -> tuple[dict[str, float], float, np.ndarray]:
-    """The best (tau, f_c) of g*times*exp(-2j*pi*f*tau)/(1 + j*f/f_c) (times = 1: the base):
-    settings, chi^2 and model values."""
+def loop_base(h, f, w) -> tuple[dict[str, float], float, np.ndarray]:
+    """The base's best (tau, f_c) of g*exp(-2j*pi*f*tau)/(1 + j*f/f_c): settings, chi^2 and
+    model values."""
     lags = _roll_off(f[None, :], ROLL_OFFS_HZ[:, None])  # (R, n)
-    shapes = (_delays(f)[:, None, :] * (lags * times)[None, :, :]).reshape(-1, len(f))
+    shapes = (_delays(f)[:, None, :] * lags[None, :, :]).reshape(-1, len(f))
     k, chi2, g = _best(h, w, shapes)
     t, r = divmod(k, len(ROLL_OFFS_HZ))
     return {"delay_s": float(DELAYS_S[t]), "roll_off_hz": float(ROLL_OFFS_HZ[r])}, chi2, g * shapes[k]

@@ -69,7 +69,8 @@ def _effect_coefficients(fit: ModelFit, k: int) -> tuple[np.ndarray, np.ndarray]
     return fit.mu[len(fit.mu) - k:], fit.mu_sd[len(fit.mu) - k:]
 
 
-REFINE_PEAKS = 3
+# local maxima of the coarse profile refined behind an unphysical coarse best (score_effect)
+PHYSICAL_PEAKS = 2
 
 
 def _physical(effect: Effect, coef: np.ndarray, signs: dict[str, float]) -> bool:
@@ -79,7 +80,7 @@ def _physical(effect: Effect, coef: np.ndarray, signs: dict[str, float]) -> bool
 
 def _local_peaks(profile, logm: np.ndarray, count: int) -> list:
     """The settings of the `count` highest coarse-profile points that beat every neighbour
-    differing in one grid parameter by one step (the best point always)."""
+    differing in one grid parameter by one step (a missing neighbour does not count)."""
     keys = sorted(profile[0][0]) if profile else []
     values = {k: sorted({st[k] for st, _ in profile}) for k in keys}
     position = {tuple(values[k].index(st[k]) for k in keys): i for i, (st, _) in enumerate(profile)}
@@ -121,7 +122,7 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     signs = effect.coefficient_signs(dict(current.base(), **scorer.base_scale))
     if k and not _physical(effect, profile_coef[int(np.argmax(logm))][0], signs):
         physical = [i for i in range(len(profile)) if _physical(effect, profile_coef[i][0], signs)]
-        starts += _local_peaks([profile[i] for i in physical], logm[physical], REFINE_PEAKS - 1)
+        starts += _local_peaks([profile[i] for i in physical], logm[physical], PHYSICAL_PEAKS)
     for start in starts:
         for setting in effect.refine(start):
             lm = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread).log_marginal
