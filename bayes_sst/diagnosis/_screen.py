@@ -172,8 +172,7 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
             spread = float(weights @ (means - weights @ means) ** 2)
             value["sd_given_grid"] = value["sd"]
             value["sd"] = float(np.sqrt(value["sd"] ** 2 + max(spread, 0.0)))
-    at_bound = any(sign * coef[effect.coefficients.index(name)] < 0
-                   for name, sign in effect.coefficient_signs(base).items())
+    at_bound = not _physical(effect, coef, effect.coefficient_signs(base))
     if at_bound:
         # the physical fit sits at the bound (coefficient 0): the base model itself
         score, se, diff, fit = 0.0, 0.0, np.zeros_like(diff), current
