@@ -891,6 +891,9 @@ def test_a_loop_that_only_lags_has_no_oil_column_and_a_resonance_in_band_is_foun
     assert peak["oil_damping"]["mean"] == pytest.approx(0.15, rel=0.1)
     assert peak["delay_s"] == pytest.approx(0.004, abs=0.0005)
     assert peak["peak_frequency_hz"] == pytest.approx(22.0 * math.sqrt(1 - 2 * 0.15**2), rel=0.02)
+    # the entry's params, which diagnosis.json's ranking and the page show, carry the peak too
+    assert ringing["params"]["peak_frequency"]["mean"] == peak["peak_frequency_hz"]
+    assert ringing["params"]["oil_frequency"] == peak["oil_frequency"]
 
 
 def test_the_twins_oil_column_is_found_at_its_closed_loop_resonance():
@@ -922,3 +925,30 @@ def test_local_peaks_of_a_coarse_profile_are_its_local_maxima_best_first():
     # without the best point (as when it is unphysical) the next maxima come first
     rest = [i for i, (st, _) in enumerate(profile) if st["f"] != 2.0]
     assert _local_peaks([profile[i] for i in rest], logm[rest], 2) == [{"f": 16.0, "z": 0.02}, {"f": 1.0, "z": 0.02}]
+
+
+def test_a_specimen_between_the_grids_points_is_polished_to_its_damping_and_mass():
+    """2 t at 10.3 Hz with 3.5 % damping: the coarse grid (12 % steps, 2 and 5 %) and its
+    refinement (2 % steps; 1, 2, 3, 5, 8 %) stop at 10.15 Hz and 5 %; Specimen.polish then
+    steps 0.5 % in frequency and 10-25 % in damping around each new best. Measured
+    2026-11-27: 10.20 Hz, 4 %, 2103 kg (without the polish 10.15 Hz, 5 %, 2109 kg)."""
+    from bayes_sst.diagnosis._diagnose import _scale
+    from bayes_sst.diagnosis._engine import Scorer
+    from bayes_sst.diagnosis._screen import fit_base, score_effect
+    from bayes_sst.effects import effect_by_name
+
+    specimen = effect_by_name("specimen")
+    polished = specimen.polish({"specimen_frequency": 10.0, "specimen_damping": 0.04})
+    frequencies = sorted({s["specimen_frequency"] for s in polished})
+    assert np.max(np.diff(np.log(frequencies))) < np.log(1.006)
+    assert frequencies[0] == pytest.approx(10.0 / 1.015, rel=1e-3) and frequencies[-1] == pytest.approx(10.15, rel=1e-3)
+    assert sorted({s["specimen_damping"] for s in polished}) == pytest.approx([0.032, 0.036, 0.04, 0.0448, 0.05])
+
+    series = simulate("sst-paper", seed=21, spread=0.02,
+                      truth_overrides={"specimen_mass": 2000.0, "specimen_frequency": 10.3, "specimen_damping": 0.035})
+    tests = effect_data(series)
+    scorer = Scorer(tests, _scale(series, tests))
+    scored = score_effect(scorer, specimen, fit_base(scorer))
+    assert scored.params["specimen_damping"]["mean"] == pytest.approx(0.035, rel=0.2)
+    assert scored.params["specimen_frequency"]["mean"] == pytest.approx(10.3, rel=0.02)
+    assert scored.params["specimen_mass"]["mean"] == pytest.approx(2000.0, rel=0.1)

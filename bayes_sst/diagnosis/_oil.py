@@ -160,7 +160,11 @@ def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[st
     head = per_payload[0]
     return {
         "name": effect.name, "score": score, "score_se": se, "z": score / se if se > 0 else None,
-        "params": {"oil_frequency": head["oil_frequency"], "oil_damping": head["oil_damping"]},
+        # the first payload's: the resonance as fitted, and where |H| peaks (what a measured
+        # frequency response, such as the study's 28.3 Hz, shows), None without a peak
+        "params": {"oil_frequency": head["oil_frequency"], "oil_damping": head["oil_damping"],
+                   **({"peak_frequency": {"mean": head["peak_frequency_hz"], "sd": head["oil_frequency"]["sd"]}}
+                      if head["peak_frequency_hz"] is not None else {})},
         "per_payload": per_payload, "equation": effect.equation, "physics": effect.physics,
         "domain": "command-to-motion frequency response of the broadband tests",
         "rms_before": before, "rms_after": after, "noise_floor": floor,
