@@ -2,7 +2,8 @@
 
 For each effect: profile its grid parameters by the collapsed marginal likelihood (alpha and
 the spread held at the current model's values; cheap), refine the best setting on the
-effect's finer local grid (Effect.refine), then score the best setting fully:
+effect's finer local grid (Effect.refine) and polish it on a finer one still (Effect.polish,
+re-centred on each new best), then score the best setting fully:
 alpha re-profiled, leave-one-test-out predictive density against the current model. The
 grid posterior (uniform prior over the grid, weights exp(log marginal)) gives the grid
 parameters' mean and sd.
