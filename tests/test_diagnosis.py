@@ -952,3 +952,22 @@ def test_a_specimen_between_the_grids_points_is_polished_to_its_damping_and_mass
     assert scored.params["specimen_damping"]["mean"] == pytest.approx(0.035, rel=0.2)
     assert scored.params["specimen_frequency"]["mean"] == pytest.approx(10.3, rel=0.02)
     assert scored.params["specimen_mass"]["mean"] == pytest.approx(2000.0, rel=0.1)
+
+
+def test_a_specimen_damped_to_the_top_of_its_range_has_no_resonance_and_is_at_its_bound():
+    """At 10 % damping (POLISHED_DAMPING's top) the shear is a smooth filter of a, not a
+    resonance: beside the valve generator's 2.1 ms delay (seed 18) such a 'specimen' (394 kg at
+    8.3 Hz) was selected as a second effect; score_effect now treats it as the base model."""
+    from bayes_sst.effects import effect_by_name
+    from bayes_sst.effects._library import POLISHED_DAMPING
+
+    specimen = effect_by_name("specimen")
+    top = POLISHED_DAMPING[1]
+    assert specimen.at_setting_bound({"specimen_frequency": 8.0, "specimen_damping": top})
+    assert not specimen.at_setting_bound({"specimen_frequency": 8.0, "specimen_damping": 0.08})
+    polished = specimen.polish({"specimen_frequency": 8.0, "specimen_damping": 0.09})
+    assert max(s["specimen_damping"] for s in polished) <= top
+    assert min(s["specimen_damping"] for s in specimen.polish({"specimen_frequency": 8.0, "specimen_damping": 0.009})) \
+        >= POLISHED_DAMPING[0]
+    # the other effects have no such bound
+    assert not effect_by_name("stiction").at_setting_bound({"stribeck_velocity": 0.04})

@@ -34,7 +34,7 @@ speed left out) against that view's own base model: in a view with the reversal 
 table's rest at each reversal, where |u| is largest, projects onto their columns. Stiction
 (REVERSAL_EFFECTS), which lives inside the reversal band, is scored on the reversal view
 (REVERSAL_SIGNALS: cut-off 12f, the reversal weight 0 below 2 % of the peak speed, where v
-crosses zero, rising to 1 at 12 %) against that view's own base model. The side
+crosses zero, rising to 1 at 7 %) against that view's own base model. The side
 views are screened first; the effects they select enter the default view's model before its
 own effects are screened, and when the default view selects effects each side view's selection
 is scored again with them in its model (a side effect no longer selectable is dropped).
@@ -122,7 +122,7 @@ COEFFICIENT_Z = 4.0
 # effects that grow with |u|, scored on the stroke view (bayes_sst.diagnosis._data.STROKE_SIGNALS)
 STROKE_EFFECTS = ("nonlinear_stiffness", "position_friction", "strut_inertia")
 # effects that live inside the reversal band, scored on the reversal view
-# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: 12f, weight 0 below 2 % of the peak speed, 1 above 12 %)
+# (bayes_sst.diagnosis._data.REVERSAL_SIGNALS: 12f, weight 0 below 2 % of the peak speed, 1 above 7 %)
 REVERSAL_EFFECTS = ("stiction",)
 
 

@@ -64,7 +64,7 @@ def format_diagnosis(data: dict) -> str:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
         view = {"stroke": "  (stroke view: 8f, |v| >= 35 % of peak)",
-                "reversal": "  (reversal view: 12f, weight 0 below 2 % of peak speed, 1 above 12 %)"}.get(r.get("view"), "")
+                "reversal": "  (reversal view: 12f, weight 0 below 2 % of peak speed, 1 above 7 %)"}.get(r.get("view"), "")
         rule = (f"  [selected: {rule_words(rules[r['name']], data.get('settings', {}))}]"
                 if mark == "*" and r["name"] in rules else "")
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}")
@@ -125,7 +125,7 @@ def figures(diagnosis) -> list[tuple[str, str]]:
             ax.set_ylabel("residual (kN)")
             out.append(("Residual force against cycle phase with the reversals included (the reversal "
                         "view, where stiction is scored: 12f, samples below 2 % of the peak speed left out and "
-                        "the rest weighted up to 12 %; "
+                        "the rest weighted up to 7 %; "
                         "its own base model)", _png(fig)))
             plt.close(fig)
 

@@ -183,7 +183,9 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
             spread = float(weights @ (means - weights @ means) ** 2)
             value["sd_given_grid"] = value["sd"]
             value["sd"] = float(np.sqrt(value["sd"] ** 2 + max(spread, 0.0)))
-    at_bound = not _physical(effect, coef, effect.coefficient_signs(base))
+    # a coefficient of the wrong sign, or a setting past which the effect is no longer itself
+    # (a specimen damped to the top of its range), is the base model
+    at_bound = not _physical(effect, coef, effect.coefficient_signs(base)) or effect.at_setting_bound(best_setting)
     if at_bound:
         # the physical fit sits at the bound (coefficient 0): the base model itself
         score, se, diff, fit = 0.0, 0.0, np.zeros_like(diff), current
