@@ -117,9 +117,9 @@ def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[st
             continue
         h, f, sigma = frf.h[usable], f[usable], (eps * np.abs(frf.h))[usable]
         w = 1.0 / sigma**2
-        base_setting, chi2_base, base_model = loop_base(h, f, w)
+        base_setting, _, base_model = loop_base(h, f, w)
         r0 = np.abs(h - base_model) ** 2 * w
-        setting, delay, chi2, model, profile = resonance_fit(h, f, w, effect)
+        setting, delay, _, model, profile = resonance_fit(h, f, w, effect)
         r1 = np.abs(h - model) ** 2 * w
         diffs.append(0.5 * (r0 - r1))
         chis = np.array([c for _, c in profile])

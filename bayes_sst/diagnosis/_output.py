@@ -9,6 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from bayes_sst.diagnosis._data import REVERSAL_SIGNALS, STROKE_SIGNALS
+
+# the side views as their SignalOptions set them, so the text cannot go stale
+_STROKE = f"{STROKE_SIGNALS.cutoff_multiple:g}f, |v| >= {100 * STROKE_SIGNALS.reversal_band:g} % of peak"
+_REVERSAL = (f"{REVERSAL_SIGNALS.cutoff_multiple:g}f, weight 0 below {100 * REVERSAL_SIGNALS.reversal_band:g} % of "
+             f"peak speed, 1 above {100 * (REVERSAL_SIGNALS.reversal_band + REVERSAL_SIGNALS.reversal_taper):g} %")
+
 DIAGNOSIS_JSON = "diagnosis.json"
 DIAGNOSIS_TEXT = "diagnosis.txt"
 DIAGNOSIS_HTML = "diagnosis.html"
@@ -63,8 +70,8 @@ def format_diagnosis(data: dict) -> str:
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
-        view = {"stroke": "  (stroke view: 8f, |v| >= 35 % of peak)",
-                "reversal": "  (reversal view: 12f, weight 0 below 2 % of peak speed, 1 above 7 %)"}.get(r.get("view"), "")
+        view = {"stroke": f"  (stroke view: {_STROKE})",
+                "reversal": f"  (reversal view: {_REVERSAL})"}.get(r.get("view"), "")
         rule = (f"  [selected: {rule_words(rules[r['name']], data.get('settings', {}))}]"
                 if mark == "*" and r["name"] in rules else "")
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}")
@@ -124,9 +131,7 @@ def figures(diagnosis) -> list[tuple[str, str]]:
             ax.set_xlabel("cycle phase")
             ax.set_ylabel("residual (kN)")
             out.append(("Residual force against cycle phase with the reversals included (the reversal "
-                        "view, where stiction is scored: 12f, samples below 2 % of the peak speed left out and "
-                        "the rest weighted up to 7 %; "
-                        "its own base model)", _png(fig)))
+                        f"view, where stiction is scored: {_REVERSAL}; its own base model)", _png(fig)))
             plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 3))

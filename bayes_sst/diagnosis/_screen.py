@@ -110,8 +110,8 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
         profile.append((setting, fit.log_marginal))
         profile_coef.append(_effect_coefficients(fit, k))
     logm = np.array([lm for _, lm in profile])
-    best_setting = profile[int(np.argmax(logm))][0]
-    best_logm = float(np.max(logm))
+    best_index = int(np.argmax(logm))
+    best_setting, best_logm = profile[best_index][0], float(logm[best_index])
     grid_edge = {key: ("lower" if best_setting[key] <= min(values) else "upper")
                  for key, values in effect.grid.items()
                  if len(values) > 2 and best_setting[key] in (min(values), max(values))}
@@ -123,21 +123,24 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     # as well raised the max over noise: a 72 kg "specimen" beside a 3 ms delay on the twin
     starts = [best_setting]
     signs = effect.coefficient_signs(dict(current.base(), **scorer.base_scale))
-    if k and not _physical(effect, profile_coef[int(np.argmax(logm))][0], signs):
+    if k and not _physical(effect, profile_coef[best_index][0], signs):
         physical = [i for i in range(len(profile)) if _physical(effect, profile_coef[i][0], signs)]
         starts += _local_peaks([profile[i] for i in physical], logm[physical], PHYSICAL_PEAKS)
-    for start in starts:
-        for setting in effect.refine(start):
-            lm = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread).log_marginal
-            if lm > best_logm:
-                best_setting, best_logm = setting, lm
-    for _ in range(POLISH_ROUNDS):
+
+    def climb(settings) -> bool:
+        """Fit each setting; keep the best so far. Whether any beat it."""
+        nonlocal best_setting, best_logm
         moved = False
-        for setting in effect.polish(best_setting):
+        for setting in settings:
             lm = scorer.fit(terms + [(effect, setting)], current.alpha, spread=current.spread).log_marginal
             if lm > best_logm:
                 best_setting, best_logm, moved = setting, lm, True
-        if not moved:
+        return moved
+
+    for start in starts:
+        climb(effect.refine(start))
+    for _ in range(POLISH_ROUNDS):
+        if not climb(effect.polish(best_setting)):
             break
     # a wide window: an unmodelled effect can bias alpha by 0.1 (a 3 ms delay moved it 0.6 -> 0.5)
     coarse = scorer.profile_alpha(terms + [(effect, best_setting)], fine_alpha(current.alpha, 0.15, 0.025))
