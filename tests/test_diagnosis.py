@@ -952,6 +952,37 @@ def test_a_specimen_between_the_grids_points_is_polished_to_its_damping_and_mass
     assert scored.params["specimen_damping"]["mean"] == pytest.approx(0.035, rel=0.2)
     assert scored.params["specimen_frequency"]["mean"] == pytest.approx(10.3, rel=0.02)
     assert scored.params["specimen_mass"]["mean"] == pytest.approx(2000.0, rel=0.1)
+    # the grid parameters' sd is the polish stencil's (0.5 % steps), not the coarse grid's
+    frequency = scored.params["specimen_frequency"]
+    assert 0.005 / np.sqrt(12) * 0.99 <= frequency["sd"] / frequency["mean"] < 0.02
+    assert frequency["posterior_mean"] == pytest.approx(frequency["mean"], rel=0.01)
+
+
+def test_the_local_grid_posterior_resolves_to_its_step_and_flags_a_posterior_wider_than_its_stencil():
+    """_local_posterior on a uniform stencil of step 0.1 about 10 with a Gaussian log marginal of
+    sd sigma: a sharp one (sigma 0.01) is known to within the step (sd = 0.1/sqrt(12)); one of
+    sigma 0.15 inside +-0.3 has sd sqrt(sigma^2 + 0.1^2/12) up to the stencil's truncation; a flat
+    one puts its weight on the stencil's ends."""
+    from bayes_sst.diagnosis._screen import LOCAL_EDGE_WEIGHT, _local_posterior
+    from bayes_sst.effects import effect_by_name
+
+    delay = effect_by_name("channel_delay")
+    values = 10.0 + 0.1 * np.arange(-6, 7)
+    best = {"delay": 10.0}
+
+    def moments(sigma):
+        stencil = [({"delay": float(x)}, -0.5 * ((x - 10.0) / sigma) ** 2 if sigma else 0.0, (np.zeros(0), np.zeros(0)))
+                   for x in values]
+        return _local_posterior(delay, stencil, best).moments["delay"]
+
+    mean, sd, edge = moments(0.01)
+    assert mean == pytest.approx(10.0) and sd == pytest.approx(0.1 / np.sqrt(12), rel=1e-3) and edge < 1e-6
+    mean, sd, edge = moments(0.15)
+    assert mean == pytest.approx(10.0) and sd == pytest.approx(np.sqrt(0.15 ** 2 + 0.1 ** 2 / 12), rel=0.05)
+    assert edge < LOCAL_EDGE_WEIGHT
+    mean, sd, edge = moments(0.0)
+    assert edge == pytest.approx(2 / 13) and edge > LOCAL_EDGE_WEIGHT
+    assert sd == pytest.approx(np.sqrt(np.var(values) + 0.1 ** 2 / 12))
 
 
 def test_a_specimen_damped_to_the_top_of_its_range_has_no_resonance_and_is_at_its_bound():
