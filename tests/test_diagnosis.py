@@ -1002,3 +1002,45 @@ def test_a_specimen_damped_to_the_top_of_its_range_has_no_resonance_and_is_at_it
         >= POLISHED_DAMPING[0]
     # the other effects have no such bound
     assert not effect_by_name("stiction").at_setting_bound({"stribeck_velocity": 0.04})
+
+
+def _breakaway_of(series):
+    from bayes_sst.diagnosis._breakaway import breakaway_check
+    from bayes_sst.diagnosis._diagnose import _scale
+    from bayes_sst.diagnosis._engine import Scorer
+    from bayes_sst.diagnosis._screen import fit_base
+
+    tests = effect_data(series)
+    scorer = Scorer(tests, _scale(series, tests))
+    return breakaway_check(series, tests, fit_base(scorer))
+
+
+def test_the_breakaway_check_reads_static_friction_that_drops_at_once():
+    """Fs/Fk = 1.4 with a Stribeck velocity of 0.5 mm/s (close to the Karnopp model: stick until
+    the force exceeds Fs, then kinetic friction) on the twin at 1 kHz: the reversal view's
+    Stribeck column scores it 0.4 +- 0.5 nats, the breakaway check reads the peak force at rest
+    0.20 above Fk (measured 2026-11-27 on seeds 21, 31, 32: 0.197-0.228, z 6.8-7.3); the same seed
+    without stiction reads 0.00-0.01. The excess reads low (a 1 ms sample misses part of the peak)."""
+    from bayes_sst.diagnosis._breakaway import BREAKAWAY_EXCESS, BREAKAWAY_Z
+
+    karnopp = _breakaway_of(simulate("sst-paper", seed=31, spread=0.02, sample_rate_hz=1000.0,
+                                     truth_overrides={"static_ratio": 1.4, "stribeck_velocity": 0.0005}))
+    assert 0.15 <= karnopp["excess"] <= 0.4 and karnopp["z"] >= BREAKAWAY_Z and karnopp["selectable"]
+    assert karnopp["tests"] == 20 and karnopp["reversals"] >= 200
+    clean = _breakaway_of(simulate("sst-paper", seed=31, spread=0.02, sample_rate_hz=1000.0))
+    assert abs(clean["excess"]) < 0.05 and not clean["selectable"]
+    assert clean["excess"] + 3 * clean["excess_se"] < BREAKAWAY_EXCESS
+
+
+@pytest.mark.slow
+def test_stiction_without_a_stribeck_velocity_is_selected_by_the_breakaway_check_and_ranked_first():
+    """diagnose() on the Karnopp-like twin of the test above: nothing else is selected, so the
+    check's finding stands; stiction leads the ranking with the check's static ratio (within 20 %
+    of 1.4) and the residual's shrink is reported as not applicable (basis "breakaway")."""
+    series = simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=1000.0,
+                      truth_overrides={"static_ratio": 1.4, "stribeck_velocity": 0.0005})
+    data = diagnose(series).to_json()
+    assert data["selected"] == ["stiction"]
+    assert data["ranking"][0]["name"] == "stiction" and data["ranking"][0]["rule"] == "breakaway"
+    assert data["ranking"][0]["params"]["static_ratio"]["mean"] == pytest.approx(1.4, rel=0.2)
+    assert data["shrink_basis"] == "breakaway" and data["breakaway_check"]["used"]

@@ -30,7 +30,8 @@ def rule_words(rule: str, settings: dict) -> str:
             "loss_scaled_z": floor + f">= {settings.get('z_loss', 5.0):g}x the scatter of the tests it makes worse",
             "explains_most": floor + "removes most of a clear excess",
             "coefficient_z": f"coefficient >= {settings.get('coefficient_z', 4.0):g} sd from zero, best of its "
-                             "round; its score is weak by construction"}.get(rule, rule)
+                             "round; its score is weak by construction",
+            "breakaway": "the breakaway check (nothing else found; the score is the Stribeck column's)"}.get(rule, rule)
 
 
 def format_diagnosis(data: dict) -> str:
@@ -42,10 +43,12 @@ def format_diagnosis(data: dict) -> str:
         amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
                    f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
-             f"{amounts}, " + (f"shrink {100 * data['shrink']:.0f} % of the excess"
-                               if data.get("shrink_basis", "residual") == "residual" else
-                               f"{100 * data['shrink']:.0f} % of the per-test coefficients' test-to-test scatter "
-                               "explained (the residual is not what a between-test effect changes)"),
+             f"{amounts}, " + {"residual": f"shrink {100 * data['shrink']:.0f} % of the excess",
+                               "between_tests": f"{100 * data['shrink']:.0f} % of the per-test coefficients' "
+                                                "test-to-test scatter explained (the residual is not what a "
+                                                "between-test effect changes)",
+                               "breakaway": "the residual is unchanged (the finding is the breakaway check's, at "
+                                            "the reversals the force model leaves out)"}[data.get("shrink_basis", "residual")],
              "", "where the base model misses (share of the excess over the noise floor):"]
     excess = data["rms_before"] ** 2 - data["noise_floor"] ** 2
     if excess < NEGLIGIBLE_EXCESS * data["noise_floor"] ** 2:
@@ -60,6 +63,13 @@ def format_diagnosis(data: dict) -> str:
                   "of the model without drift):"]
         lines.append("  " + ", ".join(f"{name} {100 * t['rate']:+.1f} +- {100 * t['sd']:.1f} %"
                                       for name, t in data["coefficient_trends"].items()))
+    check = data.get("breakaway_check")
+    if check:
+        lines += ["", f"breakaway check: the force held at rest at each reversal exceeds the kinetic friction by "
+                  f"{100 * check['excess']:+.1f} +- {100 * check['excess_se']:.1f} % (z {check['z']:.1f}; "
+                  f"{check['tests']} tests, {check['reversals']} reversals; selects stiction from "
+                  f"{100 * check['thresholds']['excess']:.0f} % and z {check['thresholds']['z']:g}"
+                  + ("" if check.get("used") else ", not used: another effect was selected") + ")"]
     if data.get("notes"):
         lines += ["", "notes (on the data and the findings):"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
@@ -67,6 +77,9 @@ def format_diagnosis(data: dict) -> str:
     for step in data.get("steps", []):
         if "chosen" in step:  # the rule that first took it, not a later check's
             rules.setdefault(step["chosen"], step["rule"])
+    for r in data["ranking"]:
+        if r.get("rule") == "breakaway":
+            rules.setdefault(r["name"], "breakaway")
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
