@@ -839,7 +839,6 @@ def diagnose(
     if oil is not None:
         ranking.append({k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor")})
         ranking[-1]["test_elpd_diff"] = []
-        ranking.sort(key=lambda r: -r["score"])
         oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
         if _oil_selectable(oil):
             say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f})")

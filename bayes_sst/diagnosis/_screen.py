@@ -218,9 +218,10 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
     weights = np.exp(logm - logm.max()) * np.array([effect.grid_weight(st) for st, _ in profile])
     weights /= weights.sum()
     points = [(st, c) for (st, _), c in zip(profile, profile_coef)]
-    # the stencil around a later start that lost to an earlier one's best says nothing of that best
-    centred = any(_key(st) == _key(best_setting) for st, _, _ in stencil)
-    local = _local_posterior(effect, stencil, best_setting) if centred else None
+    # the stencil always holds the best: each round starts from it and keeps what beats it. (A
+    # refine around a later start that lost to an earlier one would mix the two neighbourhoods;
+    # only the specimen has such starts, and its polish always follows, centred on the best)
+    local = _local_posterior(effect, stencil, best_setting) if stencil else None
     for key in effect.grid:
         values = np.array([s[key] for s, _ in profile])
         mean = float(weights @ values)
