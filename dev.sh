@@ -45,12 +45,18 @@ ensure_env() {
         fi
         echo "dev.sh: creating $VENV with $py ($("$py" --version 2>&1))" >&2
         rm -rf "$VENV"
-        "$py" -m venv "$VENV"
+        if ! "$py" -m venv "$VENV"; then
+            rm -rf "$VENV"
+            echo "dev.sh: '$py -m venv' failed; on Debian or Ubuntu install that Python's venv package (for example python3.12-venv)." >&2
+            exit 1
+        fi
     fi
     # reinstall only when the project description changed since the last install
-    local stamp="$VENV/.installed-$(sha1sum pyproject.toml | cut -c1-12)"
+    local digest
+    digest=$("$VENV/bin/python" -c 'import hashlib; print(hashlib.sha1(open("pyproject.toml", "rb").read()).hexdigest()[:12])')
+    local stamp="$VENV/.installed-$digest"
     if [ ! -f "$stamp" ]; then
-        echo "dev.sh: installing bayes_sst and its dependencies into $VENV ..." >&2
+        echo "dev.sh: installing bayes_sst and its dependencies into $VENV (from PyPI; a few minutes the first time) ..." >&2
         "$VENV/bin/python" -m pip install --quiet --upgrade pip
         "$VENV/bin/python" -m pip install --quiet -e ".[test]"
         rm -f "$VENV"/.installed-*

@@ -4,7 +4,8 @@
 - Several CPU devices, so NUTS chains run in parallel on a multi-core machine. This only
   takes effect if JAX has not started its backend yet (XLA reads the flag once); the
   user's own XLA_FLAGS setting wins.
-- A persistent compilation cache under ~/.cache/bayes_sst (or $BAYES_SST_CACHE), so that a
+- A persistent compilation cache under ~/.cache/bayes_sst/jax (or $BAYES_SST_CACHE; `off`
+  disables it), so that a
   second fit of a series of the same size skips XLA compilation.
 - Closed-over arrays passed to the compiled program as arguments, not embedded in it
   (jax_use_simplified_jaxpr_constants; arrays above jax_embedded_constants_max_bytes are

@@ -13,8 +13,8 @@ def add_parser(subparsers):
         help="where the base force model misses a series, which unmodelled effect is responsible",
         description="Locate the base model's residuals beyond the noise floor, score every candidate effect "
         "(stiction, nonlinear_stiffness, position_friction, specimen, channel_delay, drift, strut_inertia, "
-        "strut_damping) by leave-one-test-out predictive density, select those that improve the fit beyond "
-        "the noise, and report how far they shrink the residual. Prints a verdict; writes diagnosis.json "
+        "strut_damping) by leave-one-test-out predictive density, and the oil column on broadband tests; select "
+        "those that improve the fit beyond the noise, and report how far they shrink the residual. Prints a verdict; writes diagnosis.json "
         "(SI), diagnosis.txt and diagnosis.html into --out.",
     )
     p.add_argument("series", help="series folder (with series.json)")
