@@ -150,14 +150,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _raised_elsewhere(exc: BaseException) -> str | None:
+    """Where in bayes_sst an exception came from when a library below it (numpy, json) raised
+    it, as 'path:line (function)'; None when bayes_sst raised it itself (a message for the user)."""
+    import os
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    package = os.path.dirname(os.path.abspath(__file__))
+    ours = [f for f in frames if os.path.abspath(f.filename).startswith(package + os.sep)]
+    if not frames or not ours or ours[-1] is frames[-1]:
+        return None
+    last = ours[-1]
+    return f"{os.path.relpath(last.filename, os.path.dirname(package))}:{last.lineno} ({last.name})"
+
+
 def main(argv=None) -> int:
+    import os
+
     args = build_parser().parse_args(argv)
     from bayes_sst.io import OutputExistsError, SeriesFormatError
 
     try:
         return args.handler(args)
     except (SeriesFormatError, OutputExistsError, ValueError) as exc:
-        print(f"bayes-sst {args.command}: error: {exc}", file=sys.stderr)
+        where = None if isinstance(exc, (SeriesFormatError, OutputExistsError)) else _raised_elsewhere(exc)
+        if where is None:
+            print(f"bayes-sst {args.command}: error: {exc}", file=sys.stderr)
+        else:
+            # not one of the package's messages: a fault of the package on this input
+            print(f"bayes-sst {args.command}: internal error at {where}: {exc}; nothing was written. Please "
+                  "report it with the series (BAYES_SST_TRACEBACK=1 prints the traceback)", file=sys.stderr)
+            if os.environ.get("BAYES_SST_TRACEBACK"):
+                import traceback
+
+                traceback.print_exception(exc)
         return 2
     except KeyboardInterrupt:
         print(f"bayes-sst {args.command}: interrupted; nothing was written", file=sys.stderr)

@@ -74,6 +74,29 @@ def test_summary_of_a_folder_that_is_not_a_run(tmp_path, capsys):
     assert "summary.json" in capsys.readouterr().err
 
 
+def test_a_library_fault_inside_the_package_is_reported_as_internal_with_its_place(tmp_path, capsys, monkeypatch):
+    import numpy as np
+
+    import bayes_sst.cli as cli
+    from bayes_sst.signals._filters import zero_phase_lowpass
+
+    # scipy's filtfilt refuses a record shorter than its padding: a ValueError that bayes_sst
+    # did not word, which must not pass for a message about the input
+    monkeypatch.setattr(cli, "_cmd_summary", lambda args: zero_phase_lowpass(np.zeros(3), 10.0, 100.0))
+    assert main(["summary", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "internal error at bayes_sst/signals/_filters.py:" in err and "padlen" in err
+    assert "Traceback" not in err
+    monkeypatch.setenv("BAYES_SST_TRACEBACK", "1")
+    assert main(["summary", str(tmp_path)]) == 2
+    assert "Traceback" in capsys.readouterr().err
+    # the package's own messages stay plain errors
+    monkeypatch.undo()
+    assert main(["summary", str(tmp_path / "nothing")]) == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "internal" not in err
+
+
 @pytest.mark.parametrize("argv", [["fit"], ["simulate"], ["nonsense"]])
 def test_usage_errors_exit_nonzero(argv):
     with pytest.raises(SystemExit) as excinfo:

@@ -466,3 +466,31 @@ def test_recommended_tests_realise_the_predicted_half_widths():
         assert band[name]["q10"] / 1.5 <= realised <= band[name]["q90"] * 1.5, (name, realised, band[name])
         # and the design did shrink it: below the first fit's half-width
         assert realised < result.current[name]
+
+
+def test_fisher_half_widths_match_the_plain_inverse_and_stay_finite_where_tests_determine_little():
+    from types import SimpleNamespace
+
+    from bayes_sst.design._engine import Z90, fisher_half_widths
+
+    rng = np.random.default_rng(1)
+    S = 30
+    mu = np.tile([13200.0, 7.2e5, 2.96e4, 1.25e4], (S, 1))
+    post = SimpleNamespace(prior_sd=np.array([1e5, 1e7, 1e6, 1e6]), alpha_prior_sd=1.0, mu=mu, alpha=np.full(S, 0.5))
+    # per-unit sensitivities of Me, Ke, Ce, Fmu, alpha in SI: the matrix spans many decades
+    sensitivity = np.array([1e-1, 1e-3, 1e-2, 1e-2, 1e2])
+    G = rng.standard_normal((S, 40, 5)) * sensitivity
+    info = 1e6 * np.einsum("sni,snj->sij", G, G)
+    prior = np.diag(np.concatenate([1.0 / post.prior_sd**2, [1.0]]))
+    plain = np.sqrt(np.mean(np.diagonal(np.linalg.inv(info + prior), axis1=-2, axis2=-1), axis=-2))
+    centre = np.concatenate([np.abs(mu.mean(axis=0)), [0.5]])
+    expected = (Z90 * plain / centre)[[0, 1, 2, 4, 3]]
+    assert fisher_half_widths(post, info) == pytest.approx(expected, rel=1e-6)
+    # information along two directions only, large: the plain inverse gives negative variances
+    # here (a run of one test wrote NaN into design.json); the three directions the tests leave
+    # open keep their prior variance, whatever the information's size
+    thin = np.einsum("sni,snj->sij", G[:, :2], G[:, :2])
+    assert np.any(np.diagonal(np.linalg.inv(1e10 * thin + prior), axis1=-2, axis2=-1) < 0)
+    for size in (1e10, 1e14):
+        widths = fisher_half_widths(post, size * thin)
+        assert np.all(np.isfinite(widths)) and np.all(widths > 1.0)

@@ -896,6 +896,24 @@ def test_a_loop_that_only_lags_has_no_oil_column_and_a_resonance_in_band_is_foun
     assert ringing["params"]["oil_frequency"] == peak["oil_frequency"]
 
 
+def test_the_oil_check_skips_tests_without_a_command_and_a_flat_loop_writes_as_json():
+    import json
+
+    from bayes_sst.diagnosis._oil import oil_column_check
+    from bayes_sst.io import Series, TestRecord
+
+    flat = _broadband_record("B01", lambda f: np.ones_like(f), 4)
+    check = oil_column_check(Series("flat", (flat,)))
+    # the best base of a loop that neither lags nor rolls off has no roll-off: null, not infinity
+    assert check["per_payload"][0]["base"]["roll_off_hz"] is None
+    json.dumps(check, allow_nan=False)
+    bare = TestRecord(flat.spec, {k: v for k, v in flat.columns.items() if k != "a_cmd"})
+    assert oil_column_check(Series("bare", (bare,))) is None
+    with_bare = oil_column_check(Series("mixed", (flat, TestRecord(flat.spec.__class__("B02", "B02.csv", "broadband"),
+                                                                   bare.columns))))
+    assert with_bare["per_payload"][0]["base"]["roll_off_hz"] is None
+
+
 def test_the_twins_oil_column_is_found_at_its_closed_loop_resonance():
     from bayes_sst.diagnosis._oil import oil_column_check
     from bayes_sst.twin._plan import broadband_plan

@@ -368,6 +368,20 @@ def test_a_coefficient_whose_interval_reaches_zero_is_named():
     assert unphysical_coefficients(parameters) == ["Me", "Fmu"]
 
 
+def test_a_loosely_determined_parameter_is_named():
+    from bayes_sst.inference._summary import weak_parameters
+
+    means = {"Me": 13_200.0, "Ke": 7.2e5, "Ce": 29_600.0, "alpha": 0.5, "Fmu": 12_500.0}
+    parameters = {name: {"mean": m, "sd": 0.02 * m, "q05": 0.97 * m} for name, m in means.items()}
+    assert weak_parameters(parameters) == {}
+    parameters["Fmu"]["sd"] = 2_000.0  # 16 %
+    parameters["alpha"]["sd"] = 0.18
+    parameters["Me"].update(sd=7_300.0, q05=-1_000.0)  # left to the interval-reaches-zero note
+    weak = weak_parameters(parameters)
+    assert list(weak) == ["Fmu", "alpha"]
+    assert weak["Fmu"] == pytest.approx(0.16) and weak["alpha"] == 0.18
+
+
 def test_a_start_the_numpy_potential_cannot_evaluate_falls_back_to_numpyros_initialisation(monkeypatch):
     """fit hands NUTS a start with a potential computed in numpy; where that potential is not
     finite the start is left to NumPyro's own initialisation, and the fit still recovers the

@@ -468,6 +468,27 @@ def test_exactly_three_cycles_is_enough(folder):
     assert load_series(folder).tests[0].spec.frequency_hz == 0.75
 
 
+def test_a_frequency_the_sampling_cannot_hold_is_refused(folder):
+    # at 100 Hz the record holds at most 50 Hz; a time column in milliseconds looks like this
+    edit_manifest(folder, lambda d: d["tests"][2].update(frequency_hz=60.0))
+    assert_error(folder, "T03.csv", "column 't'", "tests[2].frequency_hz = 60 Hz", "half the sampling rate",
+                 "50 Hz", "seconds")
+
+
+def test_sample_rate_is_read_over_the_record_and_snapped_to_whole_hertz():
+    from bayes_sst.io._series import sample_rate_of
+
+    # time stamps far from zero, written with 6 decimals: single steps are off in the last digits
+    t = np.round(12.5 + np.arange(4001) / 200.0, 6)
+    assert 1.0 / (t[1] - t[0]) != 200.0
+    assert sample_rate_of(t) == 200.0
+    t = np.round(1.7e9 + np.arange(5001) / 1000.0, 6)
+    assert sample_rate_of(t) == 1000.0
+    # a rate that is not a whole number of Hz stays what it is
+    assert sample_rate_of(np.arange(1000) / 199.9) == pytest.approx(199.9, rel=1e-12)
+    assert sample_rate_of(np.arange(1000) * 0.003) == pytest.approx(1000.0 / 3.0, rel=1e-12)
+
+
 def test_broadband_has_no_cycle_rule(folder):
     edit_csv(folder, "T02.csv", lambda lines: lines.__delitem__(slice(11, None)))
     assert load_series(folder).tests[1].n_samples == 10
@@ -600,8 +621,12 @@ def test_write_json_atomic(tmp_path):
     assert json.loads(path.read_text()) == {"x": 1.5, "n": 3, "v": [0, 1, 2]}
     write_json_atomic(path, {"x": 2})
     assert json.loads(path.read_text()) == {"x": 2}
-    with pytest.raises(ValueError):
-        write_json_atomic(path, {"x": float("nan")})
+    # a value the computation could not give is null, not the NaN or Infinity that JSON lacks
+    write_json_atomic(path, {"x": float("nan"), "y": [np.inf, 1.0], "z": {"w": -np.inf}})
+    assert json.loads(path.read_text()) == {"x": None, "y": [None, 1.0], "z": {"w": None}}
+    write_json_atomic(path, {"x": 2})
+    with pytest.raises(TypeError):
+        write_json_atomic(path, {"x": object()})
     assert json.loads(path.read_text()) == {"x": 2}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
 

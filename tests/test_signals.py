@@ -325,6 +325,27 @@ def test_steady_cycles_on_ramped_sine():
     assert skipped.stop == window.stop
 
 
+def test_steady_cycles_leave_out_the_records_edge_cycles_of_a_test_without_ramps():
+    fs, f, amp = 500.0, 1.3, 0.03
+    period = fs / f
+    t, u, _, _ = _ramped_sine(f, amp, fs, 0, 6, 0, offset=0.37)
+    kept_all = steady_cycles(u, t, f)
+    assert kept_all.n_cycles in (5, 6)  # the last cycle may lack its final sample
+    first_edge = kept_all.start < period
+    window = steady_cycles(u, t, f, keep_at_least=3)
+    assert first_edge and window.start == pytest.approx(kept_all.start + period, abs=1.0)
+    assert window.n_cycles == kept_all.n_cycles - 2
+    assert window.stop == pytest.approx(kept_all.stop - period, abs=1.0)
+    # never below keep_at_least: four cycles lose only the first
+    t, u, _, _ = _ramped_sine(f, amp, fs, 0, 5, 0, offset=0.37)
+    four = steady_cycles(u, t, f)
+    assert steady_cycles(u, t, f, keep_at_least=four.n_cycles - 1).n_cycles == four.n_cycles - 1
+    assert steady_cycles(u, t, f, keep_at_least=four.n_cycles).n_cycles == four.n_cycles
+    # a run inside ramps keeps every cycle
+    t, u, _, _ = _ramped_sine(f, amp, fs, 2, 7, 2, offset=0.37)
+    assert steady_cycles(u, t, f, keep_at_least=3) == steady_cycles(u, t, f)
+
+
 def _square_wave_window(period, n_cycles, start=37):
     t = np.arange(start + int(np.ceil((n_cycles + 1) * period)))
     clean = np.sign(np.sin(2 * np.pi * (t + 0.3) / period)) + 0.3 * np.sin(6 * np.pi * t / period)
@@ -679,6 +700,32 @@ def test_without_an_accelerometer_the_weighted_acceleration_matches_the_measured
         keep = with_a.keep
         relative = np.sqrt(np.mean((without_a.a - with_a.a)[keep] ** 2) / np.mean(with_a.a[keep] ** 2))
         assert relative < limits[record.spec.kind], (record.spec.kind, relative)
+
+
+def test_without_an_accelerometer_a_noisy_recorded_velocity_leaves_the_acceleration_to_u():
+    """A recorded v is differentiated for the acceleration only where its noise in the analysis
+    band is below that of u's derivative: a transducer with 2 mm/s of white noise (u with 50 um)
+    is passed over, a noise-free one is used; and the prepared acceleration from the noisy one
+    is as close to the truth as without any v."""
+    from bayes_sst.signals._filters import time_derivative
+    from bayes_sst.signals._prepare import _derived_acceleration, _velocity
+
+    record, truth = _synthetic_test(1, 1.3, 0.03, noise_u=5e-5, noise_F=100.0, seed=8)
+    rng = np.random.default_rng(5)
+    without_a = {k: v for k, v in record.columns.items() if k != "a"}
+    options, cutoff, fs = SignalOptions(), 4 * 1.3, record.sample_rate_hz
+    u_only = TestRecord(record.spec, without_a)
+    a_from_u = time_derivative(_velocity(u_only, cutoff, options), fs)
+    for v, uses_v in ((truth["v"] + 2e-3 * rng.standard_normal(len(truth["v"])), False), (truth["v"], True)):
+        with_v = TestRecord(record.spec, dict(without_a, v=v))
+        v_f = _velocity(with_v, cutoff, options)
+        a = _derived_acceleration(with_v, v_f, cutoff, options)
+        assert np.array_equal(a, time_derivative(v_f, fs) if uses_v else a_from_u)
+    true_a = prepare_test(record).a
+    keep = prepare_test(u_only).keep
+    errors = [np.sqrt(np.mean((prepare_test(r).a - true_a)[keep] ** 2)) for r in (
+        u_only, TestRecord(record.spec, dict(without_a, v=truth["v"] + 2e-3 * rng.standard_normal(len(truth["v"])))))]
+    assert errors[1] < 1.5 * errors[0], errors
 
 
 def test_prepare_test_removes_constant_sensor_offsets():

@@ -572,8 +572,17 @@ def fisher_information(post: DesignPosterior, columns: TestColumns, noise: "Nois
 def fisher_half_widths(post: DesignPosterior, info: np.ndarray) -> np.ndarray:
     """Relative half-widths (..., 5) in PARAMETERS order from total information (..., S, 5, 5):
     Z90 * sqrt(mean_s cov_s) / |mean|, prior precision added."""
-    prior = np.diag(np.concatenate([1.0 / post.prior_sd**2, [1.0 / post.alpha_prior_sd**2]]))
-    cov_diag = np.diagonal(np.linalg.inv(info + prior), axis1=-2, axis2=-1)
+    # in the prior's units: cov = P (P I P + 1)^-1 P with P the prior sds, I the information.
+    # Why not inv(I + P^-2): its entries span 1e-12 to 1e12 in SI units, and for a run of one
+    # test the plain inverse gave negative variances (NaN in design.json); here every
+    # eigenvalue of (P I P + 1) is at least 1, and a direction the tests leave undetermined
+    # keeps its prior variance
+    prior_sd = np.concatenate([post.prior_sd, [post.alpha_prior_sd]])
+    whitened = info * prior_sd[:, None] * prior_sd[None, :]
+    whitened = 0.5 * (whitened + np.swapaxes(whitened, -1, -2))
+    eigenvalues, vectors = np.linalg.eigh(whitened)
+    gain = 1.0 / (1.0 + np.maximum(eigenvalues, 0.0))
+    cov_diag = np.einsum("...ij,...j,...ij->...i", vectors, gain, vectors) * prior_sd**2
     sd = np.sqrt(np.mean(cov_diag, axis=-2))  # (..., 5): mu1..mu4, alpha
     centre = np.concatenate([np.abs(post.mu.mean(axis=0)), [abs(post.alpha.mean())]])
     rel = Z90 * sd / centre

@@ -62,7 +62,7 @@ from bayes_sst.diagnosis._data import (DIAGNOSIS_SIGNALS, REVERSAL_SIGNALS, STRO
                                       strut_cubic_sign)
 from bayes_sst.diagnosis._breakaway import breakaway_check
 from bayes_sst.diagnosis._engine import BASE_COEFFICIENTS, ModelFit, Scorer
-from bayes_sst.diagnosis._oil import oil_column_check
+from bayes_sst.diagnosis._oil import has_command, oil_column_check
 from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
 from bayes_sst.effects import FORCE_EFFECTS, Effect, EffectData
 from bayes_sst.io import Series
@@ -650,12 +650,20 @@ def _oil_selectable(oil: dict[str, Any]) -> bool:
             and not oil["at_bound"])
 
 
+def _uncommanded_broadband(series: Series) -> list[str]:
+    """Ids of the broadband tests without a recorded command, which the oil column cannot use."""
+    return [r.spec.id for r in series.tests if r.spec.kind == "broadband" and not has_command(r)]
+
+
 def _broadband_only(series: Series, started: float) -> Diagnosis:
     """A series with fewer than MIN_PERIODIC_TESTS periodic tests: only the oil_column check
     of its broadband tests applies."""
     oil = oil_column_check(series)
     if oil is None:
-        raise ValueError(f"series {series.name!r} has neither periodic nor broadband tests to diagnose")
+        uncommanded = _uncommanded_broadband(series)
+        raise ValueError(f"series {series.name!r} has neither periodic tests nor broadband tests with a command to "
+                         "diagnose" + (f" (broadband tests {uncommanded} record neither u_cmd nor a_cmd)"
+                                       if uncommanded else ""))
     oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
     chosen = _oil_selectable(oil)
     entry = {k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor", "shrink")}
@@ -835,6 +843,10 @@ def diagnose(
     t0 = time.perf_counter()
     oil = oil_column_check(series)
     timings["oil_column"] = time.perf_counter() - t0
+    uncommanded = _uncommanded_broadband(series)
+    if uncommanded:
+        notes.append(f"broadband tests {uncommanded} record neither u_cmd nor a_cmd: without the command the "
+                     "oil column's command-to-motion response cannot be checked on them")
     rms_unit = "N"
     if oil is not None:
         ranking.append({k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor")})

@@ -77,7 +77,10 @@ def loop_base(h, f, w) -> tuple[dict[str, float], float, np.ndarray]:
     shapes = (_delays(f)[:, None, :] * lags[None, :, :]).reshape(-1, len(f))
     k, chi2, g = _best(h, w, shapes)
     t, r = divmod(k, len(ROLL_OFFS_HZ))
-    return {"delay_s": float(DELAYS_S[t]), "roll_off_hz": float(ROLL_OFFS_HZ[r])}, chi2, g * shapes[k]
+    roll_off = float(ROLL_OFFS_HZ[r])
+    # None: no roll-off (the flat loop); JSON has no infinity
+    return ({"delay_s": float(DELAYS_S[t]), "roll_off_hz": roll_off if np.isfinite(roll_off) else None},
+            chi2, g * shapes[k])
 
 
 def resonance_fit(h, f, w, effect: OilColumn):
@@ -94,11 +97,20 @@ def resonance_fit(h, f, w, effect: OilColumn):
     return (*best, profile)
 
 
+def has_command(record) -> bool:
+    """Whether a test records a command beside its motion ((a_cmd, a) or (u_cmd, u)), which a
+    frequency response needs."""
+    from bayes_sst.oil._frf import SIGNAL_PAIRS
+
+    return any(all(record.get(name) is not None for name in pair) for pair in SIGNAL_PAIRS)
+
+
 def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[str, Any] | None:
-    """Score the oil_column effect on the series' broadband tests; None when it has none."""
+    """Score the oil_column effect on the series' broadband tests that record a command; None
+    when it has none."""
     from bayes_sst.oil._frf import bin_error_correlation, frequency_response
 
-    broadband = [r for r in series.tests if r.spec.kind == "broadband"]
+    broadband = [r for r in series.tests if r.spec.kind == "broadband" and has_command(r)]
     if not broadband:
         return None
     groups: dict[float, list] = {}

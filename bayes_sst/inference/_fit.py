@@ -449,6 +449,9 @@ def fit(
         tree.attrs["mass_refit"] = json.dumps(refit)
     if notes:
         tree.attrs["signal_notes"] = json.dumps(notes)
+    broadband = [r.spec.id for r in series.tests if not r.spec.is_periodic]
+    if broadband:
+        tree.attrs["broadband_tests"] = json.dumps(broadband)
     return FitResult(
         tree=tree,
         prepared=prepared,

@@ -63,6 +63,28 @@ def unphysical_coefficients(parameters: dict) -> list[str]:
     return [name for name in COEFFICIENTS if parameters[name]["q05"] <= 0.0]
 
 
+# a coefficient's posterior sd above this share of its mean, or alpha's sd above WEAK_ALPHA_SD,
+# is named as weakly determined. Typical series of 10-20 sine and triangle tests give 0.3-3 %
+# (Fmu's 2-2.5 % the widest) and 0.01-0.04; six triangle tests at 0.08-0.2 m/s gave Ce 14 %,
+# Fmu 16 % and alpha 0.18 (means 13 %, 17 % and 0.21 off, inside their intervals)
+WEAK_RELATIVE_SD = 0.05
+WEAK_ALPHA_SD = 0.1
+
+
+def weak_parameters(parameters: dict) -> dict[str, float]:
+    """{name: sd} of the parameters the data determine only loosely (sd relative to the mean for
+    Me, Ke, Ce, Fmu above WEAK_RELATIVE_SD; alpha's absolute sd above WEAK_ALPHA_SD). A
+    coefficient whose interval reaches zero is left to unphysical_coefficients."""
+    weak = {}
+    for name in COEFFICIENTS:
+        p = parameters[name]
+        if p["q05"] > 0.0 and p["sd"] > WEAK_RELATIVE_SD * abs(p["mean"]):
+            weak[name] = p["sd"] / abs(p["mean"])
+    if parameters["alpha"]["sd"] > WEAK_ALPHA_SD:
+        weak["alpha"] = parameters["alpha"]["sd"]
+    return weak
+
+
 def _mixing(tree) -> dict:
     """Rank-normalised R-hat and bulk ESS of the population values and the varying between-test
     sds, and the worst of them and of the per-test noise parameters."""
@@ -179,6 +201,15 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
             f"the 90 % interval of {', '.join(unphysical)} reaches zero or below: unless the table's value "
             "is truly near zero, these data do not determine it (too few tests, or too narrow a range of "
             "frequency and speed); add tests (bayes-sst design) before using it")
+    weak = weak_parameters(parameters)
+    if weak:
+        amounts = ", ".join(f"{name} {value:.2f}" if name == "alpha" else f"{name} {100 * value:.0f} %"
+                            for name, value in weak.items())
+        notes.append(
+            f"these data determine {', '.join(weak)} only loosely (posterior sd {amounts}): the intervals "
+            "hold that, but a mean alone is no estimate to use. Damping, its exponent and friction are told "
+            "apart by the spread of peak speeds over the tests, Me and Ke by that of the frequencies; add "
+            "tests (bayes-sst design)")
     me_spread = largest_chain_spread(posterior, "Me")
     if me_spread > IMPLAUSIBLE_MASS_SPREAD:
         notes.append(
@@ -209,6 +240,10 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
         "n_likelihood_samples": int(tree["constant_data"]["keep"].values.sum()),
         "seconds": seconds,
     }
+    # the force model reads periodic tests only; the broadband ones are for ocrf and diagnose
+    broadband = json.loads(tree.attrs.get("broadband_tests", "") or "[]")
+    if broadband:
+        summary["broadband_tests_not_fitted"] = broadband
     if GAIN_SITE in posterior:
         summary[GAIN_SITE] = described(GAIN_SITE)
     priors = _tree_priors(tree)
@@ -261,6 +296,9 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
         + (f", {summary['seconds']:.1f} s" if summary.get("seconds") else ""),
         "",
     ]
+    if summary.get("broadband_tests_not_fitted"):
+        lines[-1:-1] = [f"(broadband tests {', '.join(summary['broadband_tests_not_fitted'])} are not in the force "
+                        "fit, which reads sine and triangle tests; bayes-sst ocrf and diagnose use them)"]
     notes = summary.get("notes", [])
     failures = [w for w in summary["warnings"] if w not in notes]
     if failures or not summary.get("converged", True):
@@ -294,6 +332,11 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
             row += f"{100 * (p['mean'] / centre - 1):>+7.1f}%" if centre else f"{'-':>8}"
         row += f"{p['r_hat']:>7.3f}{p['ess_bulk']:>7.0f}"
         lines.append(row)
+    unphysical_classical = [n for n in COEFFICIENTS if classical is not None and classical.get(n) is not None
+                            and classical[n] <= 0.0]
+    if unphysical_classical:
+        lines.append(f"classical: {', '.join(unphysical_classical)} at or below zero, which no table has: the hand "
+                     "method (symmetric instants of one steady cycle) does not hold on these tests")
     if physics:
         lines.append("prior: centres from the table description's component relations; "
                      "moved = posterior mean / prior centre - 1")

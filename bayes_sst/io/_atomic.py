@@ -135,10 +135,25 @@ def to_jsonable(obj: Any) -> Any:
     raise TypeError(f"{type(obj).__name__} is not JSON serializable")
 
 
+def _finite_or_null(obj: Any) -> Any:
+    """obj with every NaN or infinite float (numpy's included) replaced by None."""
+    if isinstance(obj, dict):
+        return {key: _finite_or_null(value) for key, value in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_null(value) for value in obj]
+    if isinstance(obj, np.ndarray):
+        return _finite_or_null(obj.tolist())
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    return obj
+
+
 def dumps(obj: Any) -> str:
-    """Serialize `obj` the way every JSON file of the package is written (indented, strict)."""
-    # NaN and Infinity are not JSON; refusing them here beats writing a file others cannot read.
-    return json.dumps(obj, indent=2, allow_nan=False, default=to_jsonable) + "\n"
+    """Serialize `obj` the way every JSON file of the package is written (indented, strict
+    JSON: a NaN or infinite value, one the computation could not give, is written as null)."""
+    # NaN and Infinity are not JSON, and a reader would choke on them; refusing them threw away
+    # a whole diagnosis over one flat loop's infinite roll-off, so they become null
+    return json.dumps(_finite_or_null(obj), indent=2, allow_nan=False, default=to_jsonable) + "\n"
 
 
 def write_json_atomic(path, obj: Any) -> Path:

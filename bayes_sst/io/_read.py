@@ -38,6 +38,19 @@ def _check_cycles(table: CsvTable, spec: TestSpec, index: int, step: float) -> N
         )
 
 
+def _check_sampled(table: CsvTable, spec: TestSpec, index: int, step: float) -> None:
+    # A fundamental at or above half the sampling rate cannot be in the record; most often the
+    # time column is not in seconds (milliseconds, sample numbers).
+    nyquist = 0.5 / step
+    if spec.frequency_hz >= nyquist:
+        raise SeriesFormatError(
+            table.path, "column 't'",
+            f"tests[{index}].frequency_hz = {format_number(spec.frequency_hz)} Hz is at or above half the "
+            f"sampling rate ({format_number(nyquist)} Hz for a time step of {format_number(step)} s), so the "
+            "record cannot hold it; is t in seconds?",
+        )
+
+
 def load_series(path) -> Series:
     """Read and check a test series.
 
@@ -65,6 +78,7 @@ def load_series(path) -> Series:
         table = read_csv(csv_path_of(manifest, index))
         step = check_time(table)
         if spec.is_periodic:
+            _check_sampled(table, spec, index, step)
             _check_cycles(table, spec, index, step)
         records.append(TestRecord(spec=spec, columns=table.columns))
     return Series(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from bayes_sst.io._atomic import OutputExistsError, atomic_output_dir
+from bayes_sst.io._atomic import OutputExistsError, atomic_output_dir, dumps
 from bayes_sst.io._errors import SeriesFormatError
 
 POSTERIOR_FILE = "posterior.nc"
@@ -23,7 +23,7 @@ def write_run(path, tree, summary: dict, text: str, *, overwrite: bool = False) 
     """Write the three files of a run atomically: all of them appear, or none."""
     with atomic_output_dir(path, overwrite=overwrite) as tmp:
         tree.to_netcdf(tmp / POSTERIOR_FILE, engine="netcdf4")
-        (tmp / SUMMARY_JSON).write_text(json.dumps(summary, indent=2) + "\n")
+        (tmp / SUMMARY_JSON).write_text(dumps(summary))
         (tmp / SUMMARY_TEXT).write_text(text + "\n")
     return Path(path)
 

@@ -13,6 +13,20 @@ TEST_KINDS = ("sine", "triangle", "broadband")
 PERIODIC_KINDS = ("sine", "triangle")
 REQUIRED_COLUMNS = ("t", "u", "F")
 OPTIONAL_COLUMNS = ("a", "v", "u_cmd", "a_cmd")
+# a rate within this relative distance of a whole number of Hz is that number
+WHOLE_HZ_RTOL = 1e-6
+
+
+def sample_rate_of(t) -> float:
+    """The sampling rate of a uniform time column, fs = (n - 1)/(t[n-1] - t[0]), snapped to a
+    whole number of Hz within WHOLE_HZ_RTOL. Why not 1/(t[1] - t[0]): a clock far from zero
+    rounds each time stamp in its last digits (t from 12.5 s at 200 Hz gave 199.99999999997 Hz,
+    and the decimation, a whole number of samples, came out 49 instead of 50); over the record
+    the rounding divides by n - 1."""
+    t = np.asarray(t, dtype=float)
+    rate = (len(t) - 1) / float(t[-1] - t[0])
+    whole = round(rate)
+    return float(whole) if whole > 0 and abs(rate - whole) <= WHOLE_HZ_RTOL * rate else rate
 
 
 @dataclass(frozen=True)
@@ -66,7 +80,7 @@ class TestRecord:
 
     @property
     def sample_rate_hz(self) -> float:
-        return 1.0 / float(self.t[1] - self.t[0])
+        return sample_rate_of(self.t)
 
     @property
     def n_samples(self) -> int:

@@ -18,7 +18,7 @@ def add_parser(subparsers):
         help="posterior-predictive check report of a run (HTML, PNG figures, report.json)",
         description="Write the report a reviewer reads before trusting a fitted model: sampler health "
         "(R-hat, ESS, divergences, E-BFMI, tree depth, PSIS-LOO Pareto k) with plain warnings at the top, "
-        "the parameters, per-test hysteresis loops and force with 50 %% and 90 %% predictive bands, "
+        "the parameters, per-test hysteresis loops and force with 50 % and 90 % predictive bands, "
         "residuals, band coverage, LOO-PIT and posterior-predictive p-values. Writes OUT/report.html "
         "(self-contained), OUT/report.json (the numbers, SI) and OUT/figures/*.png.",
     )
