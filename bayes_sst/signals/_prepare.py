@@ -81,6 +81,11 @@ from bayes_sst.signals._filters import lowpass_power_gain, time_derivative, zero
 from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
+# a test with fewer likelihood samples than this is named in the notes: its four coefficients
+# then rest on the between-test prior (tests of 1 mm at 0.5-1 Hz kept 5-12, a series of them
+# put Ke 30 % low, outside its 90 % interval); the tests of the twin's and three other
+# generators' series keep 25-60
+FEW_LIKELIHOOD_SAMPLES = 12
 
 
 @dataclass(frozen=True)
@@ -351,17 +356,17 @@ def complementary_velocity(smoothed_v: np.ndarray, a: np.ndarray, sample_rate_hz
     return smoothed_v + integral - gaussian_filter1d(integral, smoothing_s * sample_rate_hz)
 
 
-def _derivative_noise(x: np.ndarray, fs: float, cutoff: float, smooth) -> float:
-    """sd of the white noise on x after smooth, a time derivative and the analysis low-pass:
-    x's white-noise sd (read off its part above the cut-off, signals._noise.white_noise_sd)
-    times the norm of that chain's impulse response."""
+def _derivative_noise(x: np.ndarray, fs: float, cutoff: float, to_velocity) -> float:
+    """sd of the white noise on x after to_velocity, a time derivative and the analysis
+    low-pass: x's white-noise sd (read off its part above the cut-off,
+    signals._noise.white_noise_sd) times the norm of that chain's impulse response."""
     from bayes_sst.signals._noise import white_noise_sd
 
     sigma = white_noise_sd(x - zero_phase_lowpass(x, cutoff, fs))
     n = 2 * (int(8.0 * fs / cutoff) + 64) + 1
     impulse = np.zeros(n)
     impulse[n // 2] = 1.0
-    response = zero_phase_lowpass(time_derivative(smooth(impulse), fs), cutoff, fs)
+    response = zero_phase_lowpass(time_derivative(to_velocity(impulse), fs), cutoff, fs)
     return sigma * float(np.linalg.norm(response))
 
 
@@ -373,24 +378,15 @@ def _derived_acceleration(record: TestRecord, v_f: np.ndarray, cutoff: float, op
     slow test u gives the quieter acceleration; a recorded v with 2 mm/s of noise (u with
     20 um) at 200 Hz gave an acceleration that put Me's between-test sd at 905 %."""
     fs = record.sample_rate_hz
-    if record.get("v") is None:
+    measured_v = record.get("v")
+    if measured_v is None:
         return time_derivative(v_f, fs)
-    if options.velocity_smoothing_s > 0:
-        from scipy.ndimage import gaussian_filter1d
-
-        width = options.velocity_smoothing_s * fs
-        smooth_v = lambda x: gaussian_filter1d(x, width)
-        smooth_u = lambda x: time_derivative(gaussian_filter1d(x, width), fs)
-    else:
-        v_cutoff = min(options.velocity_cutoff_ratio * cutoff, 0.8 * 0.5 * fs)
-        smooth_v = lambda x: zero_phase_lowpass(x, v_cutoff, fs)
-        smooth_u = lambda x: time_derivative(zero_phase_lowpass(x, v_cutoff, fs), fs)
-    noise_v = _derivative_noise(np.asarray(record.get("v"), dtype=float), fs, cutoff, smooth_v)
-    noise_u = _derivative_noise(np.asarray(record.u, dtype=float), fs, cutoff, smooth_u)
-    if noise_v <= noise_u:
+    from_v = _velocity_map(fs, cutoff, options, of_displacement=False)
+    from_u = _velocity_map(fs, cutoff, options, of_displacement=True)
+    if (_derivative_noise(np.asarray(measured_v, dtype=float), fs, cutoff, from_v)
+            <= _derivative_noise(np.asarray(record.u, dtype=float), fs, cutoff, from_u)):
         return time_derivative(v_f, fs)
-    without_v = TestRecord(spec=record.spec, columns={k: c for k, c in record.columns.items() if k != "v"})
-    return time_derivative(_velocity(without_v, cutoff, options), fs)
+    return time_derivative(from_u(record.u), fs)
 
 
 def _velocity(record: TestRecord, cutoff: float, options: SignalOptions) -> np.ndarray:
@@ -409,17 +405,30 @@ def _velocity(record: TestRecord, cutoff: float, options: SignalOptions) -> np.n
     """
     fs = record.sample_rate_hz
     measured_v = record.get("v")
+    if measured_v is not None:
+        return _velocity_map(fs, cutoff, options, of_displacement=False)(measured_v)
+    return _velocity_map(fs, cutoff, options, of_displacement=True)(record.u)
+
+
+def _velocity_map(fs: float, cutoff: float, options: SignalOptions, *, of_displacement: bool):
+    """The linear map _velocity applies to a recorded v (the smoothing), or to u (the smoothing,
+    then the time derivative): a 2.5 ms Gaussian kernel by default, the Butterworth low-pass at
+    velocity_cutoff_ratio*cutoff where velocity_smoothing_s is 0."""
     if options.velocity_smoothing_s > 0:
         from scipy.ndimage import gaussian_filter1d
 
         width = options.velocity_smoothing_s * fs
-        if measured_v is not None:
-            return gaussian_filter1d(np.asarray(measured_v, dtype=float), width)
-        return time_derivative(gaussian_filter1d(np.asarray(record.u, dtype=float), width), fs)
-    v_cutoff = min(options.velocity_cutoff_ratio * cutoff, 0.8 * 0.5 * fs)
-    if measured_v is not None:
-        return zero_phase_lowpass(measured_v, v_cutoff, fs)
-    return time_derivative(zero_phase_lowpass(record.u, v_cutoff, fs), fs)
+
+        def smooth(x):
+            return gaussian_filter1d(np.asarray(x, dtype=float), width)
+    else:
+        v_cutoff = min(options.velocity_cutoff_ratio * cutoff, 0.8 * 0.5 * fs)
+
+        def smooth(x):
+            return zero_phase_lowpass(np.asarray(x, dtype=float), v_cutoff, fs)
+    if of_displacement:
+        return lambda x: time_derivative(smooth(x), fs)
+    return smooth
 
 
 def without_steady_offsets(record: TestRecord, window: CycleWindow) -> TestRecord:
@@ -505,6 +514,11 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     speed = np.abs(v_f[window.start : window.stop])
     peak_speed = float(np.percentile(speed, 99.5))
     keep = np.abs(v_f[index]) >= reversal_band_share(peak_speed, options) * peak_speed
+    if keep.sum() < FEW_LIKELIHOOD_SAMPLES:
+        notes = notes + (f"{where}: test '{spec.id}': only {int(keep.sum())} samples enter the likelihood (peak "
+                         f"speed {1e3 * peak_speed:.3g} mm/s; the reversal band leaves out those under "
+                         f"{1e3 * reversal_band_share(peak_speed, options) * peak_speed:.3g} mm/s): its own "
+                         "coefficients rest mostly on the other tests",)
     weight = reversal_weight(v_f, peak_speed, options)
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
