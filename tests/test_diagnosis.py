@@ -316,12 +316,12 @@ def test_text_output_says_what_the_shrink_is_a_share_of_and_survives_a_missing_s
             "ranking": [{"name": "drift", "score": 60.8, "score_se": 7.2, "params": {"drift": {"mean": 0.2}}}],
             "base_shift": {"Me": 0.001, "Ke": None, "Ce": -0.1, "Fmu": -0.1, "alpha": 0.0}}
     text = format_diagnosis(data)
-    assert "97 % of the per-test coefficients' test-to-test scatter explained" in text
+    assert "97 % of the test-to-test scatter of the per-test coefficients explained" in text
     assert "of the excess" not in text.splitlines()[3]
     assert "Ke n/a" in text and "Ce -10.0 %" in text
     assert "T01.csv: column 'a' set aside" in text
     residual = format_diagnosis(dict(data, shrink_basis="residual", shrink=0.5))
-    assert "shrink 50 % of the excess" in residual
+    assert "50 % of the excess removed" in residual.splitlines()[3]
     assert "[selected:" not in text  # no steps: no rule to name
     ruled = format_diagnosis(dict(data, steps=[{"given": [], "candidates": [], "chosen": "drift",
                                                  "rule": "coefficient_z"}]))

@@ -133,6 +133,16 @@ STROKE_EFFECTS = ("nonlinear_stiffness", "position_friction", "strut_inertia")
 REVERSAL_EFFECTS = ("stiction",)
 
 
+def shrink_words(basis: str, shrink: float) -> str:
+    """How far the selected effects shrink the misfit, in words, for each shrink basis
+    (Diagnosis.shrink_basis): the verdict's and diagnosis.txt's wording."""
+    return {"residual": f"{100 * shrink:.0f} % of the excess removed",
+            "between_tests": f"{100 * shrink:.0f} % of the test-to-test scatter of the per-test coefficients "
+                             "explained (the residual is not what a between-test effect changes)",
+            "breakaway": "found by the breakaway check at the reversals, where the force model's samples are "
+                         "left out: its residual is unchanged"}[basis]
+
+
 @dataclass
 class Diagnosis:
     """The result of diagnose(); to_json() gives diagnosis.json's content."""
@@ -189,11 +199,7 @@ class Diagnosis:
             params = ", ".join(f"{k} = {v['mean']:.4g}" for k, v in entry["params"].items())
             parts.append(f"{name} ({params})")
         before = f"{self.rms_before:.0f}" if self.rms_unit == "N" else f"{self.rms_before:.3g}"
-        removed = {"residual": f"{100 * self.shrink:.0f} % of the excess removed",
-                   "between_tests": f"{100 * self.shrink:.0f} % of the test-to-test scatter of the per-test "
-                                    "coefficients explained",
-                   "breakaway": "found by the breakaway check at the reversals, where the force model's "
-                                "samples are left out: its residual is unchanged"}[self.shrink_basis]
+        removed = shrink_words(self.shrink_basis, self.shrink)
         if self.shrink_basis == "residual" and self.rms_before <= self.noise_floor:
             # the shrink's reference is min(floor, after) (_shrink), so it reads 100 % here
             removed += (" (the residual was already under its noise-floor estimate: the effect is found by "

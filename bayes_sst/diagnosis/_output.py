@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from bayes_sst.diagnosis._data import REVERSAL_SIGNALS, STROKE_SIGNALS
+from bayes_sst.diagnosis._diagnose import shrink_words
 
 # the side views as their SignalOptions set them, so the text cannot go stale
 _STROKE = f"{STROKE_SIGNALS.cutoff_multiple:g}f, |v| >= {100 * STROKE_SIGNALS.reversal_band:g} % of peak"
@@ -43,12 +44,7 @@ def format_diagnosis(data: dict) -> str:
         amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
                    f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
-             f"{amounts}, " + {"residual": f"shrink {100 * data['shrink']:.0f} % of the excess",
-                               "between_tests": f"{100 * data['shrink']:.0f} % of the per-test coefficients' "
-                                                "test-to-test scatter explained (the residual is not what a "
-                                                "between-test effect changes)",
-                               "breakaway": "the residual is unchanged (the finding is the breakaway check's, at "
-                                            "the reversals the force model leaves out)"}[data.get("shrink_basis", "residual")],
+             f"{amounts}, {shrink_words(data.get('shrink_basis', 'residual'), data['shrink'])}",
              "", "where the base model misses (share of the excess over the noise floor):"]
     excess = data["rms_before"] ** 2 - data["noise_floor"] ** 2
     if excess < NEGLIGIBLE_EXCESS * data["noise_floor"] ** 2:
