@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import os
 import re
 import subprocess
@@ -628,7 +629,21 @@ def test_write_json_atomic(tmp_path):
     with pytest.raises(TypeError):
         write_json_atomic(path, {"x": object()})
     assert json.loads(path.read_text()) == {"x": 2}
+    # a series manifest keeps refusing them: its fields must be numbers
+    from bayes_sst.io._atomic import dumps
+
+    with pytest.raises(ValueError):
+        dumps({"frequency_hz": float("nan")}, non_finite_as_null=False)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["summary.json"]
+
+
+def test_write_series_refuses_a_nan_in_the_manifest(tmp_path):
+    series = make_series()
+    spec = replace(series.tests[0].spec, frequency_hz=float("nan"))
+    bad = replace(series, tests=(replace(series.tests[0], spec=spec),) + series.tests[1:])
+    with pytest.raises(ValueError):
+        write_series(bad, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
 
 
 def test_symlink_loop_is_reported(folder):

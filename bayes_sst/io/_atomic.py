@@ -148,12 +148,15 @@ def _finite_or_null(obj: Any) -> Any:
     return obj
 
 
-def dumps(obj: Any) -> str:
+def dumps(obj: Any, *, non_finite_as_null: bool = True) -> str:
     """Serialize `obj` the way every JSON file of the package is written (indented, strict
-    JSON: a NaN or infinite value, one the computation could not give, is written as null)."""
-    # NaN and Infinity are not JSON, and a reader would choke on them; refusing them threw away
-    # a whole diagnosis over one flat loop's infinite roll-off, so they become null
-    return json.dumps(_finite_or_null(obj), indent=2, allow_nan=False, default=to_jsonable) + "\n"
+    JSON). A NaN or infinite value, one the computation could not give, is written as null;
+    with non_finite_as_null=False it raises ValueError instead (a series manifest, whose fields
+    must hold numbers)."""
+    # NaN and Infinity are not JSON, and a reader would choke on them; refusing them in results
+    # threw away a whole diagnosis over one flat loop's infinite roll-off, so they become null
+    content = _finite_or_null(obj) if non_finite_as_null else obj
+    return json.dumps(content, indent=2, allow_nan=False, default=to_jsonable) + "\n"
 
 
 def write_json_atomic(path, obj: Any) -> Path:

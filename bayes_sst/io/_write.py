@@ -111,7 +111,7 @@ def write_series(series: Series, path, *, overwrite: bool = False) -> Path:
     """
     path = Path(path)
     _check_writable(series, path / MANIFEST_NAME)
-    text = dumps(manifest_dict(series))
+    text = dumps(manifest_dict(series), non_finite_as_null=False)
     with atomic_output_dir(path, overwrite=overwrite) as tmp:
         for record in series.tests:
             write_csv(tmp / record.spec.file, record.columns)
