@@ -363,3 +363,14 @@ def test_summary_shows_published_classical_posterior_and_prior_movement():
     assert "13.1" in me_line and "+11.1%" in me_line  # 13.332 t / 12 t - 1
     # generic priors: no "moved" column
     assert "moved" not in format_summary(summary, classical=classical, priors={"source": "generic"})
+
+
+def test_a_classical_coefficient_at_or_below_zero_is_flagged():
+    from bayes_sst.classical._identify import format_classical, unphysical_warning
+
+    pooled = {"Me": 13_200.0, "Ke": 7.2e5, "Ce": 29_600.0, "alpha": 0.15, "Fmu": 12_500.0}
+    assert unphysical_warning(pooled) is None
+    pooled["Fmu"] = -13_260.0
+    assert unphysical_warning(pooled).startswith("Fmu at or below zero")
+    text = format_classical({"series": "x", "method": {}, "pooled": pooled, "per_test": []})
+    assert text.splitlines()[-1].startswith("WARNING: Fmu at or below zero")

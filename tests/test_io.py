@@ -490,6 +490,11 @@ def test_sample_rate_is_read_over_the_record_and_snapped_to_whole_hertz():
     assert sample_rate_of(np.arange(1000) * 0.003) == pytest.approx(1000.0 / 3.0, rel=1e-12)
 
 
+def test_two_tests_cannot_share_a_file(folder):
+    edit_manifest(folder, lambda d: d["tests"][2].update(file=d["tests"][0]["file"]))
+    assert_error(folder, "series.json", "tests[2].file", "'T01.csv' is already the file of tests[0]")
+
+
 def test_broadband_has_no_cycle_rule(folder):
     edit_csv(folder, "T02.csv", lambda lines: lines.__delitem__(slice(11, None)))
     assert load_series(folder).tests[1].n_samples == 10

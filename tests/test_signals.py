@@ -728,6 +728,30 @@ def test_without_an_accelerometer_a_noisy_recorded_velocity_leaves_the_accelerat
     assert errors[1] < 1.5 * errors[0], errors
 
 
+def test_a_record_that_cannot_be_the_declared_test_is_refused():
+    record, _ = _synthetic_test(1, 1.3, 0.03, noise_u=5e-5, noise_F=100.0, seed=8)
+    assert prepare_test(record).notes == ()
+    # another test's file: the motion is at 1.3 Hz, the manifest says 2.6
+    wrong = TestRecord(replace(record.spec, frequency_hz=2.6), record.columns)
+    with pytest.raises(SeriesFormatError, match=r"S01.csv: test 'S01': u moves at 1.3 Hz but frequency_hz is 2.6 Hz"):
+        prepare_test(wrong)
+    # u in millimetres
+    in_mm = TestRecord(record.spec, dict(record.columns, u=1000.0 * record.u))
+    with pytest.raises(SeriesFormatError, match=r"steady amplitude of u is 30 m but amplitude_m is 0.03 m.*metres"):
+        prepare_test(in_mm)
+    # merely far off: a note
+    far = TestRecord(replace(record.spec, amplitude_m=0.018), record.columns)
+    assert any("1.67 times amplitude_m" in note for note in prepare_test(far).notes)
+
+
+def test_a_clipped_force_channel_is_named():
+    record, _ = _synthetic_test(1, 1.3, 0.03, noise_u=5e-5, noise_F=100.0, seed=8)
+    level = 0.8 * record.F.max()
+    clipped = TestRecord(record.spec, dict(record.columns, F=np.minimum(record.F, level)))
+    notes = prepare_test(clipped).notes
+    assert len(notes) == 1 and "column 'F' holds its largest value" in notes[0] and "clipped" in notes[0]
+
+
 def test_prepare_test_removes_constant_sensor_offsets():
     """Offsets on F, u, a and v change nothing the likelihood sees (up to the means' own
     partial-sample error), and with remove_offsets=False they do."""

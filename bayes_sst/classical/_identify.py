@@ -513,4 +513,18 @@ def format_classical(result: ClassicalResult | Mapping[str, Any]) -> str:
             + (f"{100 * rel:>8.2f}%" if rel is not None else f"{'-':>9}")
             + f"{spread.get('n', 0) if spread else 0:>4}"
         )
+    warning = unphysical_warning(data["pooled"])
+    if warning:
+        lines += ["", f"WARNING: {warning}; use bayes-sst fit"]
     return "\n".join(lines)
+
+
+def unphysical_warning(pooled: Mapping[str, Any]) -> str | None:
+    """Words for pooled classical coefficients at or below zero, or None: no table has them, and
+    the hand method does not hold on such tests (a series of triangles gave Fmu = -13 kN)."""
+    names = [name for name in ("Me", "Ke", "Ce", "Fmu")
+             if isinstance(pooled.get(name), (int, float)) and pooled[name] <= 0.0]
+    if not names:
+        return None
+    return (f"{', '.join(names)} at or below zero, which no table has: the hand method (symmetric instants of "
+            "one steady cycle) does not hold on these tests (triangles, say, or friction that dominates the cycle)")

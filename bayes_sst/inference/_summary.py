@@ -342,11 +342,12 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
             row += f"{100 * (p['mean'] / centre - 1):>+7.1f}%" if centre else f"{'-':>8}"
         row += f"{p['r_hat']:>7.3f}{p['ess_bulk']:>7.0f}"
         lines.append(row)
-    unphysical_classical = [n for n in COEFFICIENTS if classical is not None and classical.get(n) is not None
-                            and classical[n] <= 0.0]
-    if unphysical_classical:
-        lines.append(f"classical: {', '.join(unphysical_classical)} at or below zero, which no table has: the hand "
-                     "method (symmetric instants of one steady cycle) does not hold on these tests")
+    if classical is not None:
+        from bayes_sst.classical._identify import unphysical_warning
+
+        warning = unphysical_warning(classical)
+        if warning:
+            lines.append(f"classical: {warning}")
     if physics:
         lines.append("prior: centres from the table description's component relations; "
                      "moved = posterior mean / prior centre - 1")

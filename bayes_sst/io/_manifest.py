@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import math
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath, PureWindowsPath
@@ -226,6 +227,17 @@ def read_manifest(path: Path) -> Manifest:
                 f"duplicate id {spec.id!r}, already used by tests[{first_seen[spec.id]}]",
             )
         first_seen[spec.id] = i
+    # one record under two ids would count its data twice, or, under another test's frequency,
+    # be cut into cycles that are not its own
+    file_seen: dict[str, int] = {}
+    for i, spec in enumerate(specs):
+        key = os.path.normpath(spec.file)
+        if key in file_seen:
+            check.fail(
+                f"tests[{i}].file",
+                f"{spec.file!r} is already the file of tests[{file_seen[key]}]; each test needs its own record",
+            )
+        file_seen[key] = i
     return Manifest(
         path=path,
         name=name,

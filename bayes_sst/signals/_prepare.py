@@ -74,6 +74,7 @@ from typing import Callable
 import numpy as np
 
 from bayes_sst.io import Series, SeriesFormatError, TestRecord, table_number
+from bayes_sst.io._series import sample_rate_of
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
@@ -451,6 +452,86 @@ def without_steady_offsets(record: TestRecord, window: CycleWindow) -> TestRecor
     return TestRecord(record.spec, columns)
 
 
+# the record's dominant frequency must lie within this share of frequency_hz; its steady
+# amplitude within AMPLITUDE_RATIO_LIMITS of amplitude_m (a units slip: u in mm is 1000x), with
+# a note outside AMPLITUDE_RATIO_NOTE. The twin's and three other generators' 136 tests lie
+# within 3 % of their frequency and at 0.89-1.05 of their amplitude
+FREQUENCY_RTOL = 0.1
+AMPLITUDE_RATIO_LIMITS = (0.2, 5.0)
+AMPLITUDE_RATIO_NOTE = (0.67, 1.5)
+
+
+def dominant_frequency(u, t, above_hz: float = 0.0) -> float:
+    """The frequency (Hz) of the largest peak of u's spectrum above above_hz (linear trend
+    removed, Hann window, zero-padded four times), the DC bin excluded."""
+    u = np.asarray(u, dtype=float)
+    t = np.asarray(t, dtype=float)
+    x = u - np.polyval(np.polyfit(t - t[0], u, 1), t - t[0])
+    n = len(x)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(n), 4 * n))
+    frequencies = np.fft.rfftfreq(4 * n, 1.0 / sample_rate_of(t))
+    searched = np.flatnonzero(frequencies > above_hz)[1 if above_hz <= 0 else 0:]
+    return float(frequencies[searched[int(np.argmax(spectrum[searched]))]])
+
+
+def _check_frequency(record: TestRecord, where: str) -> None:
+    """Raise where the record's motion is at another frequency than the manifest's. Why: a
+    file listed under a test of twice its frequency was cut into 12 'cycles' and fitted without
+    a word."""
+    spec = record.spec
+    f = float(spec.frequency_hz)
+    # above a quarter of f: a slow drift of u, beyond the linear trend, is no test's motion
+    found = dominant_frequency(record.u, record.t, above_hz=0.25 * f)
+    if abs(found / f - 1.0) > FREQUENCY_RTOL:
+        raise SeriesFormatError(
+            where, f"test '{spec.id}'",
+            f"u moves at {found:.3g} Hz but frequency_hz is {f:g} Hz: is this the test's file?")
+
+
+def _check_amplitude(record: TestRecord, window: CycleWindow, where: str) -> tuple[str, ...]:
+    """Raise where the steady amplitude is AMPLITUDE_RATIO_LIMITS away from amplitude_m
+    (another test's file, u not in metres); a note where it is merely far off. Why: u in mm
+    gave Me = -0.5 kg, with the accelerometer blamed for it."""
+    spec = record.spec
+    if not spec.amplitude_m:
+        return ()
+    ratio = window.amplitude / float(spec.amplitude_m)
+    if not AMPLITUDE_RATIO_LIMITS[0] <= ratio <= AMPLITUDE_RATIO_LIMITS[1]:
+        raise SeriesFormatError(
+            where, f"test '{spec.id}'",
+            f"the steady amplitude of u is {window.amplitude:.4g} m but amplitude_m is {spec.amplitude_m:g} m "
+            f"({ratio:.3g} times): is u in metres?")
+    if not AMPLITUDE_RATIO_NOTE[0] <= ratio <= AMPLITUDE_RATIO_NOTE[1]:
+        return (f"{where}: test '{spec.id}': the steady amplitude of u is {ratio:.2f} times amplitude_m "
+                f"({window.amplitude:.4g} m against {spec.amplitude_m:g} m); check the record and the manifest",)
+    return ()
+
+
+# a channel that holds its largest or smallest value in at least this share of the samples (and
+# CLIPPED_MIN_SAMPLES of them) reads as clipped. Noisy records hold each extreme once or twice
+# (F and a of the twin's and three other generators' 136 tests: at most 2); a force clipped at
+# 80 % of its peak, in 8-10 % of them
+CLIPPED_SHARE = 0.01
+CLIPPED_MIN_SAMPLES = 10
+
+
+def _clipping_notes(record: TestRecord, where: str) -> tuple[str, ...]:
+    """A note for each of F and a that sits at its extreme value in many samples (saturated)."""
+    notes = []
+    for name in ("F", "a"):
+        x = record.get(name)
+        if x is None:
+            continue
+        x = np.asarray(x, dtype=float)
+        for side, level in (("largest", x.max()), ("smallest", x.min())):
+            count = int(np.sum(x == level))
+            if count >= max(CLIPPED_MIN_SAMPLES, CLIPPED_SHARE * len(x)):
+                notes.append(f"{where}: test '{record.spec.id}': column '{name}' holds its {side} value, {level:.6g}, "
+                             f"in {count} of {len(x)} samples: a clipped (saturated) channel reads so, and the fit "
+                             "takes those samples at face value; if it is clipped, leave the test out")
+    return tuple(notes)
+
+
 def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *, source="") -> PreparedTest:
     """Filter, differentiate, trim and decimate one periodic test (see the module docstring)."""
     spec = record.spec
@@ -458,6 +539,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     fs = record.sample_rate_hz
     f = float(spec.frequency_hz)
     cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * fs)
+    _check_frequency(record, where)
     u_f = zero_phase_lowpass(record.u, cutoff, fs)
     window = steady_cycles(
         u_f, record.t, f, tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles,
@@ -471,6 +553,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
             f"only {n_cycles} steady cycle(s) of {f:g} Hz found after trimming the ramps; "
             f"at least {MIN_STEADY_CYCLES} are needed",
         )
+    manifest_notes = _check_amplitude(record, window, where) + _clipping_notes(record, where)
     if options.remove_offsets:
         centred = without_steady_offsets(record, window)
         # the low-pass passes a constant unchanged: shift u_f rather than filter u again
@@ -480,7 +563,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     # the recorded a in the analysis band, for the check and the noise estimate below
     a_low = (zero_phase_lowpass(measured_a, cutoff, fs)
              if measured_a is not None and (options.check_accelerometer or options.accelerometer_noise) else None)
-    notes: tuple[str, ...] = ()
+    notes: tuple[str, ...] = manifest_notes
     if measured_a is not None and options.check_accelerometer:
         problem = accelerometer_disagreement(measured_a, u_f, cutoff, fs, window, a_low=a_low)
         if problem:
