@@ -187,6 +187,12 @@ def test_verdict_says_when_the_residual_had_no_visible_excess(clean_diagnosis):
     assert "100 % of the excess removed (the residual was already under its noise-floor" in found.verdict
     above = replace(found, rms_before=700.0, rms_after=515.0)
     assert above.verdict.endswith("100 % of the excess removed")
+    # nothing selected: "none" where the residual is at its floor; where it stands clearly above
+    # (mean square 50 % over), the verdict says that something outside the library is missing
+    quiet = replace(clean_diagnosis, selected=[], rms_before=520.0, noise_floor=513.0)
+    assert quiet.verdict.startswith("verdict: none - no candidate effect improves the fit beyond the noise")
+    loud = replace(clean_diagnosis, selected=[], rms_before=1.3 * 513.0, noise_floor=513.0)
+    assert loud.verdict.startswith("verdict: none of the candidate effects explains the misfit, but the model misses")
 
 
 def test_amplitude_z_of_a_scored_effect_is_its_coefficient_over_its_sd(clean_diagnosis):

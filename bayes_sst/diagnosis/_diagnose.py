@@ -191,6 +191,12 @@ class Diagnosis:
     def verdict(self) -> str:
         what = "residual RMS" if self.rms_unit == "N" else "command-to-motion response misfit RMS"
         if not self.selected:
+            if self.rms_before**2 - self.noise_floor**2 >= MIN_EXCESS * self.noise_floor**2:
+                # a clear excess that no candidate explains: something outside the library (a
+                # clipped channel or a drifting sensor left 2-4x the floor on a helper's series)
+                return ("verdict: none of the candidate effects explains the misfit, but the model misses "
+                        f"something: {what} {self._amount(self.rms_before)} against a noise floor of "
+                        f"{self._amount(self.noise_floor)}; see where it lies (diagnosis.txt) and check the records")
             return ("verdict: none - no candidate effect improves the fit beyond the noise "
                     f"({what} {self._amount(self.rms_before)}, noise floor {self._amount(self.noise_floor)})")
         parts = []
