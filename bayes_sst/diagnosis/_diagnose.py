@@ -538,12 +538,7 @@ def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False,
             return "score_z"
         if entry["sign_p"] <= SIGN_P:
             return "sign_test"
-        # an effect taken for helping some tests a lot must also lower the misfit (between-test
-        # effects aside, which the residual does not show): on a helper's clean series of six
-        # 8-10 Hz sines at 200 Hz a hinge friction scored 31 +- 18 nats (z_loss 26) while the
-        # stroke view's RMS rose 1777 -> 1779 N; every true effect this rule took on the twin and
-        # the first independent generator (9 of 43 series) lowered it
-        if entry["z_loss"] >= Z_LOSS and (s.effect.between_tests or entry.get("shrink", 0.0) > 0.0):
+        if entry["z_loss"] >= Z_LOSS:
             return "loss_scaled_z"
         if entry.get("explains_most", False) and s.amplitude_z >= STRONG_AMPLITUDE_Z:
             return "explains_most"
