@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+import traceback
 
 _START = time.perf_counter()
 
@@ -153,9 +155,6 @@ def build_parser() -> argparse.ArgumentParser:
 def _raised_elsewhere(exc: BaseException) -> str | None:
     """Where in bayes_sst an exception came from when a library below it (numpy, json) raised
     it, as 'path:line (function)'; None when bayes_sst raised it itself (a message for the user)."""
-    import os
-    import traceback
-
     frames = traceback.extract_tb(exc.__traceback__)
     package = os.path.dirname(os.path.abspath(__file__))
     ours = [f for f in frames if os.path.abspath(f.filename).startswith(package + os.sep)]
@@ -166,8 +165,6 @@ def _raised_elsewhere(exc: BaseException) -> str | None:
 
 
 def main(argv=None) -> int:
-    import os
-
     args = build_parser().parse_args(argv)
     from bayes_sst.io import OutputExistsError, SeriesFormatError
 
@@ -182,8 +179,6 @@ def main(argv=None) -> int:
             print(f"bayes-sst {args.command}: internal error at {where}: {exc}; nothing was written. Please "
                   "report it with the series (BAYES_SST_TRACEBACK=1 prints the traceback)", file=sys.stderr)
             if os.environ.get("BAYES_SST_TRACEBACK"):
-                import traceback
-
                 traceback.print_exception(exc)
         return 2
     except KeyboardInterrupt:

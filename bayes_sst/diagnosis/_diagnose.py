@@ -62,7 +62,7 @@ from bayes_sst.diagnosis._data import (DIAGNOSIS_SIGNALS, REVERSAL_SIGNALS, STRO
                                       strut_cubic_sign)
 from bayes_sst.diagnosis._breakaway import breakaway_check
 from bayes_sst.diagnosis._engine import BASE_COEFFICIENTS, ModelFit, Scorer
-from bayes_sst.diagnosis._oil import has_command, oil_column_check
+from bayes_sst.diagnosis._oil import oil_column_check
 from bayes_sst.diagnosis._screen import EffectScore, fit_base, score_effect
 from bayes_sst.effects import FORCE_EFFECTS, Effect, EffectData
 from bayes_sst.io import Series
@@ -193,7 +193,7 @@ class Diagnosis:
     def verdict(self) -> str:
         what = "residual RMS" if self.rms_unit == "N" else "command-to-motion response misfit RMS"
         if not self.selected:
-            if self.rms_before**2 - self.noise_floor**2 >= MIN_EXCESS * self.noise_floor**2:
+            if _clear_excess(self.rms_before, self.noise_floor):
                 # a clear excess that no candidate explains: something outside the library (a
                 # clipped channel or a drifting sensor left 2-4x the floor on a helper's series)
                 return ("verdict: none of the candidate effects explains the misfit, but the model misses "
@@ -516,12 +516,17 @@ def _entry(score: EffectScore) -> dict[str, Any]:
             "test_elpd_diff": [float(x) for x in score.diff]}
 
 
+def _clear_excess(before: float, floor: float) -> bool:
+    """Whether a residual RMS stands clearly above its floor: mean square MIN_EXCESS above it."""
+    return before**2 - floor**2 >= MIN_EXCESS * floor**2
+
+
 def _with_shrink(entry: dict[str, Any], before: float, after: float, floor: float) -> dict[str, Any]:
     """The candidate's entry with its shrink, and whether it explains most of a clear excess
     (the residual's mean square at least MIN_EXCESS above the floor's, and at least
     EXPLAINED_SHARE of that excess removed)."""
     shrink = _shrink(before, after, floor)
-    clear = before**2 - floor**2 >= MIN_EXCESS * floor**2
+    clear = _clear_excess(before, floor)
     return dict(entry, shrink=shrink, explains_most=bool(clear and shrink >= EXPLAINED_SHARE))
 
 
@@ -666,6 +671,8 @@ def _oil_selectable(oil: dict[str, Any]) -> bool:
 
 def _uncommanded_broadband(series: Series) -> list[str]:
     """Ids of the broadband tests without a recorded command, which the oil column cannot use."""
+    from bayes_sst.oil._frf import has_command
+
     return [r.spec.id for r in series.tests if r.spec.kind == "broadband" and not has_command(r)]
 
 

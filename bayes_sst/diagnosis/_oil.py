@@ -97,18 +97,10 @@ def resonance_fit(h, f, w, effect: OilColumn):
     return (*best, profile)
 
 
-def has_command(record) -> bool:
-    """Whether a test records a command beside its motion ((a_cmd, a) or (u_cmd, u)), which a
-    frequency response needs."""
-    from bayes_sst.oil._frf import SIGNAL_PAIRS
-
-    return any(all(record.get(name) is not None for name in pair) for pair in SIGNAL_PAIRS)
-
-
 def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[str, Any] | None:
     """Score the oil_column effect on the series' broadband tests that record a command; None
     when it has none."""
-    from bayes_sst.oil._frf import bin_error_correlation, frequency_response
+    from bayes_sst.oil._frf import bin_error_correlation, frequency_response, has_command
 
     broadband = [r for r in series.tests if r.spec.kind == "broadband" and has_command(r)]
     if not broadband:

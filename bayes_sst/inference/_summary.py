@@ -22,6 +22,10 @@ ESS_LIMIT = 400
 # few reach 1.01 by chance, so they are held to the older, looser standard
 NUISANCE_RHAT_LIMIT = 1.1
 NUISANCE_ESS_LIMIT = 20
+# transitions at the maximum tree depth beyond this share fail the checks: the sampler then
+# explores too slowly for its R-hat and ESS to be read at face value; below it, a note (a
+# series of 1 mm tests had 1 of 2000, and passed R-hat and ESS)
+SATURATED_SHARE = 0.01
 # a between-test sd of the moving mass above this share is not physical: it means the sine
 # tests' per-test Me and Ke slid along their ridge (fit refits with that spread held near 2 %; summarize warns)
 IMPLAUSIBLE_MASS_SPREAD = 0.10
@@ -69,12 +73,6 @@ def unphysical_coefficients(parameters: dict) -> list[str]:
 # Fmu 16 % and alpha 0.18 (means 13 %, 17 % and 0.21 off, inside their intervals)
 WEAK_RELATIVE_SD = 0.05
 WEAK_ALPHA_SD = 0.1
-
-
-# transitions at the maximum tree depth beyond this share fail the checks: the sampler then
-# explores too slowly for its R-hat and ESS to be read at face value; below it, a note (a
-# series of 1 mm tests had 1 of 2000, and passed R-hat and ESS)
-SATURATED_SHARE = 0.01
 
 
 def weak_parameters(parameters: dict) -> dict[str, float]:

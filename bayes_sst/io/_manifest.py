@@ -219,7 +219,10 @@ def read_manifest(path: Path) -> Manifest:
     if not tests:
         check.fail("tests", "is empty; a series needs at least one test")
     specs = tuple(_test_spec(check, entry, i) for i, entry in enumerate(tests))
+    # one record under two ids would count its data twice, or, under another test's frequency,
+    # be cut into cycles that are not its own
     first_seen: dict[str, int] = {}
+    file_seen: dict[str, int] = {}
     for i, spec in enumerate(specs):
         if spec.id in first_seen:
             check.fail(
@@ -227,17 +230,13 @@ def read_manifest(path: Path) -> Manifest:
                 f"duplicate id {spec.id!r}, already used by tests[{first_seen[spec.id]}]",
             )
         first_seen[spec.id] = i
-    # one record under two ids would count its data twice, or, under another test's frequency,
-    # be cut into cycles that are not its own
-    file_seen: dict[str, int] = {}
-    for i, spec in enumerate(specs):
-        key = os.path.normpath(spec.file)
-        if key in file_seen:
+        file = os.path.normpath(spec.file)
+        if file in file_seen:
             check.fail(
                 f"tests[{i}].file",
-                f"{spec.file!r} is already the file of tests[{file_seen[key]}]; each test needs its own record",
+                f"{spec.file!r} is already the file of tests[{file_seen[file]}]; each test needs its own record",
             )
-        file_seen[key] = i
+        file_seen[file] = i
     return Manifest(
         path=path,
         name=name,

@@ -107,12 +107,18 @@ def _spectra(x, y, fs: float, segment_samples: int, overlap_samples: int):
     return f, s_xx, s_yy, s_xy
 
 
+def has_command(record) -> bool:
+    """Whether a test records a command beside its motion, one of SIGNAL_PAIRS ((a_cmd, a) or
+    (u_cmd, u)), which a frequency response needs."""
+    return any(all(record.get(name) is not None for name in pair) for pair in SIGNAL_PAIRS)
+
+
 def common_signals(records) -> tuple[str, str]:
     """The best (input, output) column pair that every test records: (a_cmd, a), else (u_cmd, u)."""
     for pair in SIGNAL_PAIRS:
         if all(r.get(name) is not None for r in records for name in pair):
             return pair
-    lacking = [r.id for r in records if not any(all(r.get(c) is not None for c in p) for p in SIGNAL_PAIRS)]
+    lacking = [r.id for r in records if not has_command(r)]
     raise ValueError("a frequency response needs a command and the measured motion, (a_cmd, a) or "
                      "(u_cmd, u), in every test; " + (f"tests {lacking} record neither" if lacking else
                      "the tests share neither pair"))

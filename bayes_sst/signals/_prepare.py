@@ -596,12 +596,12 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     index = np.arange(window.start, window.stop, decimation)
     speed = np.abs(v_f[window.start : window.stop])
     peak_speed = float(np.percentile(speed, 99.5))
-    keep = np.abs(v_f[index]) >= reversal_band_share(peak_speed, options) * peak_speed
+    band_edge = reversal_band_share(peak_speed, options) * peak_speed
+    keep = np.abs(v_f[index]) >= band_edge
     if keep.sum() < FEW_LIKELIHOOD_SAMPLES:
         notes = notes + (f"{where}: test '{spec.id}': only {int(keep.sum())} samples enter the likelihood (peak "
                          f"speed {1e3 * peak_speed:.3g} mm/s; the reversal band leaves out those under "
-                         f"{1e3 * reversal_band_share(peak_speed, options) * peak_speed:.3g} mm/s): its own "
-                         "coefficients rest mostly on the other tests",)
+                         f"{1e3 * band_edge:.3g} mm/s): its own coefficients rest mostly on the other tests",)
     weight = reversal_weight(v_f, peak_speed, options)
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
