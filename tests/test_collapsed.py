@@ -526,3 +526,43 @@ def test_coefficient_draws_for_many_draws_at_once_equal_draw_by_draw():
                                   m0, s0, xp=np)
         for part_together, part_alone in zip(together, alone):
             assert np.allclose(part_together[i], part_alone, rtol=1e-12, atol=1e-12)
+
+
+def test_a_shared_coefficients_ignored_spread_moves_the_population_as_refitted_data_do():
+    """Priors.ignored_spread: with Me shared (rho_Me = 0), a standard normal z_j = 1 for test j
+    alone must move mu exactly as refitting the data with test j's true Me raised by
+    s*|mu_Me| does (the conditional mean is linear in the data), and z = 0 must change nothing."""
+    rng = np.random.default_rng(21)
+    t = np.arange(80) * 0.05
+    per_test = []
+    for j in range(4):
+        w = 1.0 + 0.4 * j
+        x = np.stack([-w * w * np.sin(w * t) + 0.05 * np.sin(3 * w * t), np.sin(w * t),
+                      np.abs(np.cos(w * t)) ** 0.5 * np.sign(np.cos(w * t)), np.sign(np.cos(w * t))])
+        y = (1.0 + 0.1 * rng.standard_normal(4)) @ x + 0.05 * rng.standard_normal(len(t))
+        per_test.append((y, x))
+
+    def host_table(data):
+        table = _table([(y, np.stack([x, x]), np.zeros((2, 4, len(y)))) for y, x in data], np.array([0.0, 1.0]))
+        return MomentTable(*(np.asarray(v) if hasattr(v, "shape") else v for v in table))
+
+    J = len(per_test)
+    rho = np.array([0.0, 0.1, 0.05, 0.1])
+    phi, sigma = np.full(J, 0.3), np.full(J, 0.05)
+    m0, s0 = np.ones(4), np.full(4, 10.0)
+    spread = np.array([0.02, 0.0, 0.0, 0.0])
+    zero_mu, zero_theta = np.zeros(4), np.zeros((J, 4))
+    plain = draw_coefficients(zero_mu, zero_theta, host_table(per_test), 0.5, rho, phi, sigma, m0, s0, xp=np)[0]
+    unmoved = draw_coefficients(zero_mu, zero_theta, host_table(per_test), 0.5, rho, phi, sigma, m0, s0, xp=np,
+                                ignored_spread=spread, normal_ignored=np.zeros((4, J)))[0]
+    assert np.allclose(unmoved, plain, rtol=0, atol=1e-14)
+    for j in range(J):
+        one_hot = np.zeros((4, J))
+        one_hot[0, j] = 1.0
+        moved = draw_coefficients(zero_mu, zero_theta, host_table(per_test), 0.5, rho, phi, sigma, m0, s0, xp=np,
+                                  ignored_spread=spread, normal_ignored=one_hot)[0]
+        shifted = [(y + (0.02 * abs(plain[0]) * x[0] if i == j else 0.0), x) for i, (y, x) in enumerate(per_test)]
+        refitted = draw_coefficients(zero_mu, zero_theta, host_table(shifted), 0.5, rho, phi, sigma, m0, s0, xp=np)[0]
+        # to 1e-5 of the shift: the table's relative noise floor follows the data's scale
+        assert np.max(np.abs(moved - refitted)) < 1e-5 * np.max(np.abs(refitted - plain)), j
+        assert abs(moved[0] - plain[0]) > 1e-4  # each test moves the shared mass

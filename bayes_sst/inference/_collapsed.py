@@ -509,7 +509,7 @@ _collapsed_jax.defvjp(_collapsed_jax_forward, _collapsed_jax_backward)
 
 
 def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
-                      prior_mean, prior_sd, xp=jnp, gain=1.0):
+                      prior_mean, prior_sd, xp=jnp, gain=1.0, ignored_spread=None, normal_ignored=None):
     """An exact draw of mu (4,) and every theta_j (J, 4) given the sampled parameters, from
     standard normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
     log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units).
@@ -519,12 +519,26 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     (draws, J, 4) and the log-likelihood (draws, J).
 
     theta_j's Coulomb coefficient is that of test j's column s_j L_j filter(sign v)
-    (friction_factors): the empty table's friction as the test saw it."""
+    (friction_factors): the empty table's friction as the test saw it.
+
+    ignored_spread (4,) (floats, zeros for none) and normal_ignored (4, [draws,] J): a shared
+    coefficient k (rho_k = 0) whose tests may in truth differ by d_jk ~ N(0, (s_k mu_k)^2).
+    Such a d_jk moves b_j by A_j e_k d_jk and so mu's mean by Q^-1 H_j e_k d_jk (h_j = (I + A T)^-1 b_j,
+    H_j = (I + A T)^-1 A_j), so mu gains sum_j Q^-1 H_j e_k s_k |mu_k| z_jk: the shared fit's
+    population value with the spread it left out. Tests that pin coefficient k dominate both
+    its value and this term."""
     terms = _terms(table, alpha, rho, phi, sigma, xp, gain)
     Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
     Q_chol = sl.cholesky(Q, xp)
     # mu = Q^-1 r + L^-T z has covariance Q^-1
     mu = sl.cho_solve(Q_chol, r, xp) + sl.solve_upper_transposed(Q_chol, normal_mu, xp)
+    if ignored_spread is not None:
+        for k, relative_sd in enumerate(ignored_spread):
+            if relative_sd > 0.0:
+                # (4, [draws,] J): how test j's coefficient k moves mu
+                response = sl.cho_solve(Q_chol[..., None], terms.H[:, k], xp)
+                deviation = relative_sd * xp.abs(mu[k])[..., None] * normal_ignored[k]
+                mu = mu + xp.sum(response * deviation[None], axis=-1)
     per_test_mu = mu[..., None]  # (4, [draws,] 1)
     residual = terms.b - xp.sum(terms.A * per_test_mu[None], axis=1)
     # theta_j = mu + D B^-1 D (b - A mu) + D L^-T z has covariance D B^-1 D

@@ -39,6 +39,9 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     rng = np.random.default_rng(seed)
     normal_mu = rng.standard_normal((n_draws, 4))
     normal_theta = rng.standard_normal((n_draws, n_tests, 4))
+    ignored = priors.ignored_spread_vector()
+    # drawn after the others, so that a fit without an ignored spread keeps its draws
+    normal_ignored = rng.standard_normal((4, n_draws, n_tests)) if ignored is not None else None
     mu = np.empty((n_draws, 4))
     theta = np.empty((n_draws, n_tests, 4))
     per_test = np.empty((n_draws, n_tests))
@@ -49,6 +52,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
         mu[part], theta[part], per_test[part] = draw_coefficients(
             normal_mu[part].T, normal_theta[part], host_table, flat["alpha"][part], flat["spread"][part].T,
             flat["phi"][part], flat["sigma"][part], prior_mean, prior_sd, xp=np, gain=gain[part],
+            ignored_spread=ignored, normal_ignored=None if ignored is None else normal_ignored[:, part],
         )
     if with_gain:
         # each test's Coulomb coefficient as that of its column friction_load*filter(sign v),

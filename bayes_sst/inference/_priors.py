@@ -97,6 +97,11 @@ class Priors:
     shared: tuple[str, ...] = ()
     # {coefficient: (median, log sd)} of a between-test spread prior other than the common one
     spread_by_coefficient: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    # {shared coefficient: relative between-test sd it is still taken to have}: the automatic
+    # mass refit shares Me only because its spread could not be fitted, not because the table's
+    # tests have one mass, so the population value carries what such a spread adds to it
+    # (_collapsed.draw_coefficients)
+    ignored_spread: Mapping[str, float] = field(default_factory=dict)
     noise_scale: float = 0.05
     noise_log_sd: float = 2.0
     # (mean, sd, low, high) of kappa's truncated normal; None keeps kappa at 1 (the description's ratio)
@@ -122,6 +127,16 @@ class Priors:
         pairs = [self.spread_by_coefficient.get(name, (self.spread_median, self.spread_log_sd)) for name in COEFFICIENTS]
         return np.array([float(m) for m, _ in pairs]), np.array([float(s) for _, s in pairs])
 
+    def ignored_spread_vector(self) -> np.ndarray | None:
+        """(4,) relative sd of each coefficient's between-test spread that sharing it ignores
+        (zeros where none), or None when no coefficient has one."""
+        if not self.ignored_spread:
+            return None
+        unknown = set(self.ignored_spread) - set(self.shared)
+        if unknown:
+            raise ValueError(f"an ignored spread is only for shared coefficients, got {sorted(unknown)}")
+        return np.array([float(self.ignored_spread.get(name, 0.0)) for name in COEFFICIENTS])
+
     def describe(self) -> dict[str, Any]:
         return {
             "source": self.source,
@@ -132,7 +147,8 @@ class Priors:
                                     "shared": list(self.shared),
                                     **({"by_coefficient": {k: {"median": m, "log_sd": s} for k, (m, s)
                                                            in self.spread_by_coefficient.items()}}
-                                       if self.spread_by_coefficient else {})},
+                                       if self.spread_by_coefficient else {}),
+                                    **({"ignored_by_sharing": dict(self.ignored_spread)} if self.ignored_spread else {})},
             "payload_friction_gain": (None if self.payload_friction_gain is None else dict(
                 zip(("mean", "sd", "low", "high"), self.payload_friction_gain))),
             **({"relations": dict(self.relations)} if self.relations else {}),

@@ -201,7 +201,9 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
             f"a between-test sd of {100 * refit['first_fit_mass_spread']:.0f} %{tried}, which a table does not do "
             "(per-test Me and Ke of sine tests slide along their ridge when their harmonics, which alone tell "
             "the two apart, carry noise or friction the model does not have); the numbers are from the refit "
-            "(README, known limitations)"
+            + (f"and Me's interval allows for the tests' masses differing by {100 * refit['ignored_spread']:.0f} % "
+               if refit.get("ignored_spread") else "")
+            + "(README, known limitations)"
         )
     unphysical = unphysical_coefficients(parameters)
     if unphysical:
