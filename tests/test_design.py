@@ -494,3 +494,34 @@ def test_fisher_half_widths_match_the_plain_inverse_and_stay_finite_where_tests_
     for size in (1e10, 1e14):
         widths = fisher_half_widths(post, size * thin)
         assert np.all(np.isfinite(widths)) and np.all(widths > 1.0)
+
+
+def test_the_designs_start_keeps_a_shared_masss_ignored_spread():
+    """A run whose Me is shared with an ignored 2 % spread (the fit's last mass refit): with no
+    test added, the design's mixture must be the run's posterior, whose Me interval is mostly
+    that spread's; without the spread's term the design started from Me's 0.2 % of the data."""
+    from bayes_sst.design._engine import (PARAMETERS, alpha_grid_for, design_posterior, existing_terms,
+                                          half_widths_from_draws, preposterior_curve)
+    from bayes_sst.inference import fit, run_prepared
+    from bayes_sst.inference._priors import Priors
+    from bayes_sst.twin import default_plan, simulate
+
+    series = simulate("sst-paper", seed=4, spread=0.01, plan=default_plan("sst-paper")[12:])
+    tree = fit(series, seed=1, chains=2, draws=400, warmup=300,
+               prior=Priors(shared=("Me",), ignored_spread={"Me": 0.02})).tree
+    prepared = run_prepared(tree, series)
+    post = design_posterior(tree, prepared)
+    assert post.ignored_spread is not None and post.ignored_spread[0] == 0.02
+    grid = alpha_grid_for(post.alpha)
+    columns = [regressor_columns(t, grid, post.scale, post.force_scale) for t in prepared]
+    responses = [(t.F - t.payload_kg * t.a) / post.force_scale for t in prepared]
+    old, old_ignored = existing_terms(post, columns, responses, with_ignored=True)
+    added = _one_added_test(post, columns, prepared)
+    current = half_widths_from_draws(post)
+    me = PARAMETERS.index("Me")
+    half, _ = preposterior_curve(post, old, added, n_outcomes=1, seed=0, old_ignored=old_ignored)
+    assert current["Me"] > 0.01
+    for name in ("Me", "Ke", "Ce", "Fmu"):
+        assert half[0, 0, PARAMETERS.index(name)] == pytest.approx(current[name], rel=0.08), name
+    without, _ = preposterior_curve(post, old, added, n_outcomes=1, seed=0)
+    assert without[0, 0, me] < 0.4 * current["Me"]

@@ -241,7 +241,7 @@ def design(
 
     old_columns = [columns_of(t) for t in prepared]
     responses = [(t.F - t.payload_kg * t.a) / post.force_scale for t in prepared]
-    old = existing_terms(post, old_columns, responses)
+    old, old_ignored = existing_terms(post, old_columns, responses, with_ignored=True)
     repeat = cycled([Candidate(t.kind, t.frequency_hz, t.amplitude_m) for t in prepared], max_tests)
     unique = list(dict.fromkeys(list(accepted) + repeat))
     built = {}
@@ -266,10 +266,12 @@ def design(
     say(f"greedy search done ({time.perf_counter() - started:.1f} s)")
 
     half_rec, ess_rec = preposterior_curve(post, old, [NewTest(built[c], twins[c]) for c in recommended],
-                                           n_outcomes=n_outcomes, seed=seed, base_info=base_all)
+                                           n_outcomes=n_outcomes, seed=seed, base_info=base_all,
+                                           old_ignored=old_ignored)
     say(f"preposterior of the recommended tests done ({time.perf_counter() - started:.1f} s)")
     half_rep, ess_rep = preposterior_curve(post, old, [NewTest(built[c], twins[c]) for c in repeat],
-                                           n_outcomes=n_outcomes, seed=seed + 1, base_info=base_all)
+                                           n_outcomes=n_outcomes, seed=seed + 1, base_info=base_all,
+                                           old_ignored=old_ignored)
     say(f"preposterior of the repeated plan done ({time.perf_counter() - started:.1f} s)")
 
     curve = _curve_rows(half_rec, PARAMETERS)

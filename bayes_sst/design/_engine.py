@@ -68,7 +68,9 @@ class DesignPosterior:
     mu (S, 4) = (Me, Ke, Ce, Fmu)/scale; alpha (S,); rho (S, 4) between-test sds / scale;
     phi, sigma (S, J) per existing test (sigma / force_scale); prior_mean, prior_sd (4,)
     of the population values / scale (the fit's priors); alpha_prior_sd; gain (S,) the
-    payload's friction gain kappa per draw, None where the fit did not sample it (kappa = 1).
+    payload's friction gain kappa per draw, None where the fit did not sample it (kappa = 1);
+    ignored_spread (4,) the relative between-test sd a shared coefficient is still taken to
+    have (the fit's Priors.ignored_spread), None where none is.
     """
 
     mu: np.ndarray
@@ -82,6 +84,7 @@ class DesignPosterior:
     prior_sd: np.ndarray
     alpha_prior_sd: float
     gain: np.ndarray | None = None
+    ignored_spread: np.ndarray | None = None
 
     @property
     def n_draws(self) -> int:
@@ -91,7 +94,7 @@ class DesignPosterior:
         return DesignPosterior(self.mu[index], self.alpha[index], self.rho[index], self.phi[index],
                                self.sigma[index], self.scale, self.force_scale, self.prior_mean,
                                self.prior_sd, self.alpha_prior_sd,
-                               None if self.gain is None else self.gain[index])
+                               None if self.gain is None else self.gain[index], self.ignored_spread)
 
 
 def _flat(tree, name):
@@ -109,6 +112,7 @@ def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
         raise ValueError("the run does not record its priors (posterior.nc attrs 'priors'); refit it with this version")
     centres = np.array([priors["centres"][name] for name in COEFFICIENTS], dtype=float)
     relative_sd = float(priors.get("relative_sd", 1.0))
+    ignored = priors.get("between_test_spread", {}).get("ignored_by_sharing") or {}
     return DesignPosterior(
         mu=mu_si / scale,
         alpha=_flat(tree, "alpha"),
@@ -121,6 +125,7 @@ def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
         prior_sd=relative_sd * np.abs(centres) / scale,
         alpha_prior_sd=float(priors.get("alpha", {}).get("sd", 0.5)),
         gain=_flat(tree, GAIN_SITE) if GAIN_SITE in tree["posterior"] else None,
+        ignored_spread=(np.array([float(ignored.get(name, 0.0)) for name in COEFFICIENTS]) if ignored else None),
     )
 
 
@@ -225,6 +230,27 @@ class Terms(NamedTuple):
     H: np.ndarray
 
 
+def ignored_outer(post: DesignPosterior, H: np.ndarray) -> np.ndarray | None:
+    """sum_k (s_k mu_k)^2 (H e_k)(H e_k)' per draw, H (S, ..., 4, 4); None without an ignored
+    spread. Summed over tests it is V, and Q^-1 V Q^-1 is what a shared coefficient's ignored
+    between-test spread adds to mu's covariance (inference._collapsed.draw_coefficients)."""
+    if post.ignored_spread is None:
+        return None
+    out = np.zeros(H.shape)
+    for k, relative_sd in enumerate(post.ignored_spread):
+        if relative_sd > 0.0:
+            scale = (relative_sd * post.mu[:, k]).reshape((-1,) + (1,) * (H.ndim - 2))
+            column = H[..., :, k] * scale
+            out += column[..., :, None] * column[..., None, :]
+    return out
+
+
+def ignored_variance(V: np.ndarray, H_sum: np.ndarray, prior_sd: np.ndarray) -> np.ndarray:
+    """diag(Q^-1 V Q^-1) (..., 4) with Q = S0^-1 + H_sum (..., 4, 4)."""
+    Q_inv = np.linalg.inv(H_sum + np.diag(1.0 / prior_sd**2))
+    return np.einsum("...ki,...ij,...kj->...k", Q_inv, V, Q_inv)
+
+
 def _last(x: np.ndarray, k: int) -> np.ndarray:
     """Move the k trailing matrix/vector axes to the front (the batch-last layout of
     bayes_sst.inference._smalllinalg, whose unrolled factorisations vectorise over the batch)."""
@@ -297,12 +323,15 @@ def _scale_row_and_column(M: np.ndarray, index: int, factors: np.ndarray | None)
     return M
 
 
-def existing_terms(post: DesignPosterior, columns: Sequence[TestColumns], responses: Sequence[np.ndarray]) -> Terms:
+def existing_terms(post: DesignPosterior, columns: Sequence[TestColumns], responses: Sequence[np.ndarray],
+                   with_ignored: bool = False):
     """Summed terms of the recorded tests for every draw, (S,), (S, 4), (S, 4, 4); a payload
-    test's Coulomb column scaled by its draw's friction gain (friction_scaling)."""
+    test's Coulomb column scaled by its draw's friction gain (friction_scaling). with_ignored:
+    return (terms, V) with V the recorded tests' sum of ignored_outer (None without one)."""
     c = np.zeros(post.n_draws)
     h = np.zeros((post.n_draws, 4))
     H = np.zeros((post.n_draws, 4, 4))
+    V = None if post.ignored_spread is None else np.zeros((post.n_draws, 4, 4))
     for j, (cols, y) in enumerate(zip(columns, responses)):
         moments, slopes = lagged(cols, y)
         W = whiten(hermite(moments, slopes, cols.grid, post.alpha), post.phi[:, j])
@@ -311,7 +340,9 @@ def existing_terms(post: DesignPosterior, columns: Sequence[TestColumns], respon
         c += t.c
         h += t.h
         H += t.H
-    return Terms(c, h, H)
+        if V is not None:
+            V += ignored_outer(post, t.H)
+    return (Terms(c, h, H), V) if with_ignored else Terms(c, h, H)
 
 
 class NoiseSource(NamedTuple):
@@ -436,7 +467,8 @@ def alpha_laplace(post: DesignPosterior, base_info: np.ndarray, tests: Sequence[
 
 def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTest], *, n_outcomes: int,
                        seed: int, base_info: np.ndarray | None = None, min_components: int = 128,
-                       weight_coverage: float = 0.999, truths: np.ndarray | None = None):
+                       weight_coverage: float = 0.999, truths: np.ndarray | None = None,
+                       old_ignored: np.ndarray | None = None):
     """Predicted relative half-widths after adding tests[:n], n = 0..len(tests), over outcomes.
 
     Returns (half (R, N+1, 5) in PARAMETERS order, ess (R, N+1)): for each outcome r a
@@ -444,6 +476,10 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
     AR(1) noise with the (phi, sigma) of their nearest recorded test in that draw; the
     updated posterior reweights all draws (module docstring). `truths` (indices of draws)
     fixes which draws play the truth, for diagnosis.
+
+    With an ignored spread (post.ignored_spread; old_ignored the recorded tests' V from
+    existing_terms) each component's covariance gains Q'^-1 V' Q'^-1, V' summed over the
+    recorded and the added tests, and an added test's true coefficients vary by that spread.
 
     With many added tests the reweighting rests on few draws and their spread in alpha
     understates alpha's remaining uncertainty (and that of Ce, Fmu, which move with it).
@@ -471,6 +507,9 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
     truths = np.argsort(order)[np.asarray(truths)]
     post = post.subset(order)
     old = Terms(old.c[order], old.h[order], old.H[order])
+    ignored = post.ignored_spread is not None and old_ignored is not None
+    if ignored:
+        old_ignored = old_ignored[order]
     if base_info is not None:
         base_info = base_info[order]
     _, _, old_loglik = population(old.c, old.h, old.H, post.prior_mean, post.prior_sd)
@@ -494,6 +533,8 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
             phis[k] = post.phi[s_true, test.noise.twin]
             sigmas[k] = post.sigma[s_true, test.noise.twin] * test.noise.inflation
             theta = post.mu[s_true] + post.rho[s_true] * rng.standard_normal(4)
+            if ignored:
+                theta = theta + post.ignored_spread * np.abs(post.mu[s_true]) * rng.standard_normal(4)
             y = simulate_response(rng, test.columns, float(post.alpha[s_true]), theta, phis[k], sigmas[k])
             moments[k], slopes[k] = lagged(test.columns, y)
         # all added tests at once: (G, N, 3, 5, 5) interpolated at every draw's alpha; the new
@@ -515,6 +556,10 @@ def preposterior_curve(post: DesignPosterior, old: Terms, tests: Sequence[NewTes
         alpha_var = w @ post.alpha**2 - alpha_mean**2
         extra = np.maximum(v_alpha - alpha_var[:, None], 0.0)  # (N+1, S)
         variances = cov + extra[..., None] * gain**2  # (N+1, S, 4)
+        if ignored:
+            added = np.concatenate([np.zeros((1, S, 4, 4)),
+                                    np.cumsum(np.swapaxes(ignored_outer(post, t.H), 0, 1), axis=0)])
+            variances = variances + ignored_variance(old_ignored + added, old.H + cum[2], post.prior_sd)
         # the quantiles of the mixture from its heaviest components: once the added tests
         # speak, a few dozen draws carry nearly all the weight; rows are taken in groups of
         # like size, for speed. Row 0 (nothing added) has equal weights and so takes every
