@@ -501,7 +501,8 @@ def test_the_designs_start_keeps_a_shared_masss_ignored_spread():
     test added, the design's mixture must be the run's posterior, whose Me interval is mostly
     that spread's; without the spread's term the design started from Me's 0.2 % of the data."""
     from bayes_sst.design._engine import (PARAMETERS, alpha_grid_for, design_posterior, existing_terms,
-                                          half_widths_from_draws, preposterior_curve)
+                                          fisher_half_widths, fisher_information, half_widths_from_draws,
+                                          ignored_outer, preposterior_curve)
     from bayes_sst.inference import fit, run_prepared
     from bayes_sst.inference._priors import Priors
     from bayes_sst.twin import default_plan, simulate
@@ -525,3 +526,8 @@ def test_the_designs_start_keeps_a_shared_masss_ignored_spread():
         assert half[0, 0, PARAMETERS.index(name)] == pytest.approx(current[name], rel=0.08), name
     without, _ = preposterior_curve(post, old, added, n_outcomes=1, seed=0)
     assert without[0, 0, me] < 0.4 * current["Me"]
+    # the fast search's Fisher path starts there too
+    info = [fisher_information(post, cols, j) for j, cols in enumerate(columns)]
+    fisher = fisher_half_widths(post, sum(info), sum(ignored_outer(post, i) for i in info))
+    assert fisher[me] == pytest.approx(current["Me"], rel=0.15)
+    assert fisher_half_widths(post, sum(info))[me] < 0.4 * current["Me"]

@@ -35,6 +35,7 @@ from bayes_sst.design._engine import (
     existing_terms,
     fisher_information,
     half_widths_from_draws,
+    ignored_outer,
     noise_sources,
     preposterior_curve,
     regressor_columns,
@@ -142,8 +143,10 @@ def spread_floor(post, n_total: int) -> dict[str, dict[str, float]]:
     is known no better than rho/sqrt(J), so the half-width cannot fall below
     Z90 * rho_k / sqrt(J) / |mu_k| (posterior median of rho_k/mu_k)."""
     out = {}
+    ignored = post.ignored_spread if post.ignored_spread is not None else np.zeros(len(COEFFICIENTS))
     for k, name in enumerate(COEFFICIENTS):
-        relative = float(np.median(post.rho[:, k] / np.abs(post.mu[:, k])))
+        # a shared coefficient's ignored spread is between-test variation all the same
+        relative = float(np.median(np.hypot(post.rho[:, k] / np.abs(post.mu[:, k]), ignored[k])))
         out[name] = {
             "relative_spread": relative,
             "half_width_floor": Z90 * relative / math.sqrt(n_total),
@@ -258,10 +261,13 @@ def design(
     fisher_pick = np.unique(np.linspace(0, post.n_draws - 1, min(FISHER_DRAWS, post.n_draws)).round().astype(int))
     fpost = post.subset(fisher_pick)
     # every draw's information is its own, so the search's draws take their rows of the whole set's
-    base_all = sum(fisher_information(post, cols, j) for j, cols in enumerate(old_columns))
+    old_info = [fisher_information(post, cols, j) for j, cols in enumerate(old_columns)]
+    base_all = sum(old_info)
     base = base_all[fisher_pick]
+    base_ignored = (None if post.ignored_spread is None
+                    else sum(ignored_outer(post, info) for info in old_info)[fisher_pick])
     cand_info = np.stack([fisher_information(fpost, built[c], twins[c]) for c in accepted])
-    chosen, fisher_path = greedy_design(fpost, base, cand_info, targets, max_tests)
+    chosen, fisher_path = greedy_design(fpost, base, cand_info, targets, max_tests, base_ignored=base_ignored)
     recommended = [accepted[i] for i in chosen]
     say(f"greedy search done ({time.perf_counter() - started:.1f} s)")
 

@@ -231,7 +231,8 @@ class Terms(NamedTuple):
 
 
 def ignored_outer(post: DesignPosterior, H: np.ndarray) -> np.ndarray | None:
-    """sum_k (s_k mu_k)^2 (H e_k)(H e_k)' per draw, H (S, ..., 4, 4); None without an ignored
+    """sum_k (s_k mu_k)^2 (H e_k)(H e_k)' per draw, H (S, ..., n, n) with mu's four coefficients
+    first (a test's H_j, or its Fisher information on (mu, delta alpha)); None without an ignored
     spread. Summed over tests it is V, and Q^-1 V Q^-1 is what a shared coefficient's ignored
     between-test spread adds to mu's covariance (inference._collapsed.draw_coefficients)."""
     if post.ignored_spread is None:
@@ -614,9 +615,11 @@ def fisher_information(post: DesignPosterior, columns: TestColumns, noise: "Nois
     return M - np.swapaxes(DMx, -1, -2) @ np.linalg.solve(B, DMx)
 
 
-def fisher_half_widths(post: DesignPosterior, info: np.ndarray) -> np.ndarray:
+def fisher_half_widths(post: DesignPosterior, info: np.ndarray, ignored: np.ndarray | None = None) -> np.ndarray:
     """Relative half-widths (..., 5) in PARAMETERS order from total information (..., S, 5, 5):
-    Z90 * sqrt(mean_s cov_s) / |mean|, prior precision added."""
+    Z90 * sqrt(mean_s cov_s) / |mean|, prior precision added. ignored (..., S, 5, 5): the
+    tests' summed ignored_outer of their information, whose C V C joins the covariance C (a
+    shared coefficient's ignored between-test spread, as in preposterior_curve)."""
     # in the prior's units: cov = P (P I P + 1)^-1 P with P the prior sds, I the information.
     # Why not inv(I + P^-2): its entries span 1e-12 to 1e12 in SI units, and for a run of one
     # test the plain inverse gave negative variances (NaN in design.json); here every
@@ -628,6 +631,10 @@ def fisher_half_widths(post: DesignPosterior, info: np.ndarray) -> np.ndarray:
     eigenvalues, vectors = np.linalg.eigh(whitened)
     gain = 1.0 / (1.0 + np.maximum(eigenvalues, 0.0))
     cov_diag = np.einsum("...ij,...j,...ij->...i", vectors, gain, vectors) * prior_sd**2
+    if ignored is not None:
+        scaled_vectors = vectors * prior_sd[:, None]
+        cov = np.einsum("...ij,...j,...kj->...ik", scaled_vectors, gain, scaled_vectors)
+        cov_diag = cov_diag + np.einsum("...ij,...jk,...ik->...i", cov, ignored, cov)
     sd = np.sqrt(np.mean(cov_diag, axis=-2))  # (..., 5): mu1..mu4, alpha
     centre = np.concatenate([np.abs(post.mu.mean(axis=0)), [abs(post.alpha.mean())]])
     rel = Z90 * sd / centre

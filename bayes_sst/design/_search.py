@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from bayes_sst.design._engine import PARAMETERS, DesignPosterior, fisher_half_widths
+from bayes_sst.design._engine import PARAMETERS, DesignPosterior, fisher_half_widths, ignored_outer
 
 EPSILON = 0.05
 
@@ -30,20 +30,28 @@ def design_loss(half: np.ndarray, targets: Mapping[str, float]) -> np.ndarray:
 
 
 def greedy_design(post: DesignPosterior, base_info: np.ndarray, candidate_info: np.ndarray,
-                  targets: Mapping[str, float], n_tests: int) -> tuple[list[int], np.ndarray]:
+                  targets: Mapping[str, float], n_tests: int,
+                  base_ignored: np.ndarray | None = None) -> tuple[list[int], np.ndarray]:
     """Indices of the chosen candidates, in order, and the Fisher-predicted half-widths
     (n_tests + 1, 5) along the way.
 
-    base_info (S, 5, 5): information of the recorded tests per draw; candidate_info (C, S, 5, 5).
+    base_info (S, 5, 5): information of the recorded tests per draw; candidate_info (C, S, 5, 5);
+    base_ignored (S, 5, 5): the recorded tests' summed ignored_outer of their information, where
+    the run shares a coefficient with an ignored spread (each candidate then adds its own).
     """
     info = base_info.copy()
+    candidate_ignored = None if base_ignored is None else ignored_outer(post, candidate_info.swapaxes(0, 1)).swapaxes(0, 1)
+    ignored = base_ignored
     chosen: list[int] = []
-    path = [fisher_half_widths(post, info)]
+    path = [fisher_half_widths(post, info, ignored)]
     for _ in range(n_tests):
-        trial = fisher_half_widths(post, info[None] + candidate_info)  # (C, 5)
+        trial = fisher_half_widths(post, info[None] + candidate_info,
+                                   None if ignored is None else ignored[None] + candidate_ignored)  # (C, 5)
         best = int(np.argmin(design_loss(trial, targets)))
         chosen.append(best)
         info = info + candidate_info[best]
+        if ignored is not None:
+            ignored = ignored + candidate_ignored[best]
         path.append(trial[best])
     return chosen, np.stack(path)
 
