@@ -177,6 +177,34 @@ def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected(
     assert not selected(31.9, 675.5, 600.0, 274.8)[0]  # removes a third of the excess only
 
 
+def test_an_effect_that_raises_the_residual_is_not_selected():
+    """A clean valve-generator series (seed 103, 256 Hz): a specimen of 11 t at 22 Hz gained
+    24,276 nats in one triangle test and lost 10-350 in the thirteen others; the loss-scaled
+    rule took it (z_loss 38) while the RMS went from 493 to 4169 N. MAX_RMS_RISE refuses it;
+    the same scores with the RMS unchanged (a true stiction beside a ringing specimen) or
+    lowered pass."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._diagnose import MAX_RMS_RISE, _entry, _selection_rule, _with_shrink
+    from bayes_sst.effects import FORCE_EFFECTS
+
+    diff = np.array([-9.9, -10.6, -16.7, -44.1, -60.7, -46.1, -186.3, -47.7, -141.1, 0.8, 3.3, -40.6,
+                     -350.8, 24276.4])  # as measured
+    specimen = next(e for e in FORCE_EFFECTS if e.name == "specimen")
+    s = SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=24352.2, params={},
+                        fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff, amplitude_z=237.7)
+
+    def rule(before, after):
+        return _selection_rule(s, _with_shrink(_entry(s), before, after, 281.0))
+
+    assert _entry(s)["z_loss"] > 30.0
+    assert rule(493.0, 4169.0) is None
+    assert rule(493.0, 1.01 * MAX_RMS_RISE * 493.0) is None
+    assert rule(493.0, 493.0) == "loss_scaled_z"
+    assert rule(493.0, 0.99 * MAX_RMS_RISE * 493.0) == "loss_scaled_z"
+    assert rule(493.0, 300.0) == "loss_scaled_z"
+
+
 def test_verdict_says_when_the_residual_had_no_visible_excess(clean_diagnosis):
     """The shrink is measured against min(floor, after), so an effect found while the residual
     sits under its floor estimate reads "100 % of the excess removed"; the verdict says why."""
