@@ -113,10 +113,12 @@ REVERSAL_SHARE = 0.2
 # No rule selects an effect that leaves its view's residual RMS more than MAX_RMS_RISE times
 # what it was. Why: on a clean valve-generator series (seed 103, 256 Hz) a specimen of 11 t at
 # 22 Hz gained 24,276 nats in one 4.7 Hz triangle test and lost 10-350 in every other, so the
-# loss-scaled rule took it (z_loss 38), with the RMS going from 493 to 4169 N. A true effect
-# can leave the RMS where it was (a stiction beside a ringing specimen: 282 +- 152 nats, the
-# RMS unchanged), so the limit is loose
-MAX_RMS_RISE = 1.25
+# loss-scaled rule took it (z_loss 38), with the RMS going from 493 to 4169 N; on seed 106
+# (200 Hz, oil column at 16 Hz) one of 2 t at 17.7 Hz, 140 of its 160 nats from one 4.6 Hz
+# triangle, with the RMS from 880 to 986 N (1.12). A true effect can leave the RMS where it was
+# (a stiction beside a ringing specimen: 282 +- 152 nats, the RMS unchanged), so the limit
+# leaves 5 %
+MAX_RMS_RISE = 1.05
 # An effect marked Effect.z_selectable is one fixed column, no grid, so no look-elsewhere, and
 # its leave-one-test-out score is weak by construction: the base model's per-test coefficients
 # absorb most of it (drift's trend between tests; the cubic's 3/4*K'e*A^2/h^2 part of each sine
