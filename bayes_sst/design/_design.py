@@ -264,8 +264,9 @@ def design(
     old_info = [fisher_information(post, cols, j) for j, cols in enumerate(old_columns)]
     base_all = sum(old_info)
     base = base_all[fisher_pick]
+    # the search's draws only: ignored_outer reads each draw's own mu
     base_ignored = (None if post.ignored_spread is None
-                    else sum(ignored_outer(post, info) for info in old_info)[fisher_pick])
+                    else sum(ignored_outer(fpost, info[fisher_pick]) for info in old_info))
     cand_info = np.stack([fisher_information(fpost, built[c], twins[c]) for c in accepted])
     chosen, fisher_path = greedy_design(fpost, base, cand_info, targets, max_tests, base_ignored=base_ignored)
     recommended = [accepted[i] for i in chosen]
