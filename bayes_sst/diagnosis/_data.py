@@ -22,6 +22,7 @@ from bayes_sst.io import Series, table_number
 from bayes_sst.physics import strut_cubic_stiffness
 from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_series, without_steady_offsets,
                                zero_phase_lowpass)
+from bayes_sst.signals._filters import smoothed_variance, time_derivative
 from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 
 # The default view treats the signals as the fit does (but without the fit's 10 mm/s floor on
@@ -102,11 +103,56 @@ def strut_cubic_sign(series: Series) -> float:
     return -1.0 if strut_cubic_stiffness(1.0, gamma, h, l0) < 0 else 1.0
 
 
+def acceleration_of_recorded_velocity(v, sample_rate_hz: float, smoothing_s: float):
+    """The acceleration without an accelerometer from a recorded velocity, along v's last axis:
+
+        a0 = D(G_s * v),   a = a0 - k*D(D(a0)),   k = s_k^2/2 + h^2/6,
+
+    v smoothed by the fit's velocity kernel G_s (s_k^2 its sampled variance), differentiated once
+    at the recorded rate (h = 1/rate); the smoothing and the central difference each add their
+    second-order term times a'', which k takes out (derived_acceleration, from u, differentiates
+    twice and has h^2/3)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    h = 1.0 / sample_rate_hz
+    k = smoothed_variance(smoothing_s * sample_rate_hz) * h * h / 2.0 + h * h / 6.0
+    a0 = time_derivative(gaussian_filter1d(np.asarray(v, dtype=float), smoothing_s * sample_rate_hz, axis=-1),
+                         sample_rate_hz)
+    return a0 - k * time_derivative(time_derivative(a0, sample_rate_hz), sample_rate_hz)
+
+
+def quieter_recorded_velocity(record, sample_rate_hz: float, cutoff_hz: float) -> np.ndarray | None:
+    """The recorded v of a test without an accelerometer where its derivative is quieter in the
+    analysis band than u's second derivative (the fit's choice, signals._prepare), else None.
+
+    Why the diagnosis follows the fit here: an independent generator's clean series with a
+    recorded v (0.2 mm/s of noise) and no `a`, its acceleration taken from u (20 um) as before,
+    left a residual of 191 N where the v-derived acceleration leaves 67 N (floor 69 N), and a specimen of
+    2.8 t at 13.7 Hz was selected (72 +- 50 nats): below its resonance it adds mass, above it it
+    does not, so it took the u-derived acceleration's noise, which rises with frequency, for a
+    lighter deck at high frequency. With the acceleration from v the residual is 67 N and
+    nothing scores (2.8 +- 2.7 nats)."""
+    v = record.get("v")
+    if v is None:
+        return None
+    from bayes_sst.signals._prepare import _derivative_noise, _velocity_map
+
+    v = np.asarray(v, dtype=float)
+    from_v = _velocity_map(sample_rate_hz, cutoff_hz, DIAGNOSIS_SIGNALS, of_displacement=False)
+    from_u = _velocity_map(sample_rate_hz, cutoff_hz, DIAGNOSIS_SIGNALS, of_displacement=True)
+    if (_derivative_noise(v, sample_rate_hz, cutoff_hz, from_v)
+            <= _derivative_noise(np.asarray(record.u, dtype=float), sample_rate_hz, cutoff_hz, from_u)):
+        return v
+    return None
+
+
 def derived_acceleration_noise(u, velocity, cutoff_hz: float, sample_rate_hz: float, lo: int, hi: int,
-                               rng: np.random.Generator) -> np.ndarray | None:
+                               rng: np.random.Generator, of_velocity: bool = False) -> np.ndarray | None:
     """(NOISE_DRAWS, hi - lo): the displacement sensor's white noise, read off u
     (mid_stroke_noise_sd of u less its low-pass), drawn and carried through derived_acceleration, for
     the errors-in-variables correction that a recorded a's noise gets (None without noise).
+    of_velocity: u is a recorded velocity from which the acceleration was taken
+    (quieter_recorded_velocity); its noise goes through acceleration_of_recorded_velocity.
 
     Why: twice differentiated, u's noise is a noise in the acceleration regressor that grows as
     f^2, so it weighs most at the harmonics, where it is as large as the harmonics themselves
@@ -127,6 +173,8 @@ def derived_acceleration_noise(u, velocity, cutoff_hz: float, sample_rate_hz: fl
     # sample sees noise on both sides as a recorded one does
     pad = int(4 * VELOCITY_SMOOTHING_S * sample_rate_hz) + 8
     draws = rng.normal(0.0, sd, (NOISE_DRAWS, hi - lo + 2 * pad))
+    if of_velocity:
+        return acceleration_of_recorded_velocity(draws, sample_rate_hz, VELOCITY_SMOOTHING_S)[:, pad:pad + hi - lo]
     return derived_acceleration(draws, sample_rate_hz, VELOCITY_SMOOTHING_S)[:, pad:pad + hi - lo]
 
 
@@ -154,8 +202,11 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         lo, hi = p.filter_span
         # a recorded acceleration that prepare_test refused (PreparedTest.notes) is not used here either
         measured_a = record.get("a") if p.acceleration_measured else None
+        recorded_v = None
         if measured_a is None:
-            measured_a = derived_acceleration(record.u, fs, VELOCITY_SMOOTHING_S)
+            recorded_v = quieter_recorded_velocity(record, fs, cutoff)
+            measured_a = (derived_acceleration(record.u, fs, VELOCITY_SMOOTHING_S) if recorded_v is None
+                          else acceleration_of_recorded_velocity(recorded_v, fs, VELOCITY_SMOOTHING_S))
         a_raw = np.asarray(measured_a, dtype=float)
         if p.order is not None and last > first:
             position = (p.order - first) / (last - first)
@@ -180,7 +231,8 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         if p.acceleration_measured and p.acceleration_noise_known:
             a_noise = p.raw_acceleration_noise(NOISE_DRAWS, hi - lo, rng)
         elif not p.acceleration_measured:
-            a_noise = derived_acceleration_noise(record.u, p.velocity_full, cutoff, fs, lo, hi, rng)
+            a_noise = derived_acceleration_noise(record.u if recorded_v is None else recorded_v, p.velocity_full,
+                                                 cutoff, fs, lo, hi, rng, of_velocity=recorded_v is not None)
         out.append(EffectData(
             id=p.id,
             frequency_hz=p.frequency_hz,

@@ -17,7 +17,10 @@
    more than IMPROVED_NATS has P(X >= k | X ~ Binomial(J, 1/2)) <= SIGN_P. (An effect that acts
    on a few tests only, such as a delay on the fast ones, has heterogeneous per-test gains and
    a large score_se although every test improves; the sign test sees that), or the score is
-   Z_LOSS times the scatter of the tests it makes worse (loss_scaled_z), or it removes most
+   Z_LOSS times the scatter of the tests it makes worse (loss_scaled_z; the amplitude
+   STRONG_AMPLITUDE_Z sds from zero and, when one test holds the gain so that the others alone
+   score under ONE_TEST_Z, at least EXPLAINED_SHARE of a residual above its floor removed; in
+   every case its view's residual RMS lowered), or it removes most
    of a clear excess over the floor with a well-resolved amplitude (MIN_EXCESS, EXPLAINED_SHARE,
    STRONG_AMPLITUDE_Z); and in every case its linear coefficient must stand MIN_AMPLITUDE_Z sds
    away from zero (DERIVED_AMPLITUDE_Z for an effect that reads the acceleration when some
@@ -36,8 +39,9 @@ table's rest at each reversal, where |u| is largest, projects onto their columns
 (REVERSAL_SIGNALS: cut-off 12f, the reversal weight 0 below 2 % of the peak speed, where v
 crosses zero, rising to 1 at 7 %) against that view's own base model. The side
 views are screened first; the effects they select enter the default view's model before its
-own effects are screened, and when the default view selects effects each side view's selection
-is scored again with them in its model (a side effect no longer selectable is dropped).
+own effects are screened, and when the default view selects effects each side view is screened
+again with them in its model, and what it selects then replaces what it selected alone (a side
+effect no longer selectable is dropped; one that a default-view effect masked is added).
 Broadband tests add the oil_column check (bayes_sst.diagnosis._oil), scored on their
 command-to-motion frequency response; when it is the only effect selected, noise_floor,
 rms_before, rms_after and shrink are those of the frequency-response misfit (dimensionless).
@@ -116,9 +120,25 @@ REVERSAL_SHARE = 0.2
 # loss-scaled rule took it (z_loss 38), with the RMS going from 493 to 4169 N; on seed 106
 # (200 Hz, oil column at 16 Hz) one of 2 t at 17.7 Hz, 140 of its 160 nats from one 4.6 Hz
 # triangle, with the RMS from 880 to 986 N (1.12). A true effect can leave the RMS where it was
-# (a stiction beside a ringing specimen: 282 +- 152 nats, the RMS unchanged), so the limit
-# leaves 5 %
+# (a stiction beside a ringing specimen: 282 +- 152 nats, the RMS 0.8 % up), so the limit
+# leaves 5 % to the score and sign-test rules; the loss-scaled rule asks more (below)
 MAX_RMS_RISE = 1.05
+# The loss-scaled rule is the one that trusts a gain held by a few tests, so it asks three things
+# more than the others: its effect's amplitude resolved as the explains-most rule asks
+# (STRONG_AMPLITUDE_Z); its view's residual RMS lowered; and, when the gain rests on one test
+# (the per-test differences with that test left out scoring a loss-scaled z under ONE_TEST_Z),
+# that residual above its noise floor before and at least EXPLAINED_SHARE of its excess removed.
+# Why: on 40 clean valve-generator series (seeds 100-139) the rule claimed four effects: a
+# specimen of 34 +- 20 nats (amplitude 4.8 sds, the RMS up 0.6 %), a channel delay of 0.1 ms
+# (95 +- 97 nats, 93 of them in one test, the RMS up 0.2 %), a strut damping (80 +- 95 nats, 94
+# in one test, the residual already 2 % under its floor) and a stiction (95 +- 73 nats, z 1.8
+# without its best test, 19 % of the excess removed). The true effects it took on the virtual
+# table and the two blind generators stood 12.9-68 sds from zero and lowered the RMS 0.5-25 %,
+# but for a stiction beside a ringing specimen (the twin, the RMS 0.8 % up), which the reversal
+# view's second screening with the specimen in its model takes; the one resting on one test (a
+# hinge on the LuGre generator: 58 of 61 nats in its largest-amplitude test, z 0.6 without it)
+# removed 78 % of an excess 2 % over the floor; the others kept z 4.7-47 without their best test
+ONE_TEST_Z = 2.5
 # An effect marked Effect.z_selectable is one fixed column, no grid, so no look-elsewhere, and
 # its leave-one-test-out score is weak by construction: the base model's per-test coefficients
 # absorb most of it (drift's trend between tests; the cubic's 3/4*K'e*A^2/h^2 part of each sine
@@ -513,13 +533,22 @@ def loss_scaled_z(diff: np.ndarray) -> float:
     return float(np.sum(diff) / scale)
 
 
+def loss_scaled_z_without_best(diff: np.ndarray) -> float:
+    """loss_scaled_z of the per-test differences with the largest left out: whether the gain
+    rests on one test (0 for fewer than two tests)."""
+    diff = np.asarray(diff)
+    if diff.size < 2:
+        return 0.0
+    return loss_scaled_z(np.delete(diff, int(np.argmax(diff))))
+
+
 def _entry(score: EffectScore) -> dict[str, Any]:
     return {"name": score.effect.name, "score": float(score.score), "score_se": float(score.score_se),
             "z": float(score.score / score.score_se) if score.score_se > 0 else None,
             "params": score.params, "equation": score.effect.equation,
             "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound,
             "grid_edge": dict(score.grid_edge), "sign_p": sign_test(score.diff),
-            "z_loss": loss_scaled_z(score.diff),
+            "z_loss": loss_scaled_z(score.diff), "z_loss_without_best": loss_scaled_z_without_best(score.diff),
             # None for an effect without a linear coefficient (the delay): JSON has no infinity
             "amplitude_z": score.amplitude_z if math.isfinite(score.amplitude_z) else None,
             "test_elpd_diff": [float(x) for x in score.diff]}
@@ -537,7 +566,8 @@ def _with_shrink(entry: dict[str, Any], before: float, after: float, floor: floa
     shrink = _shrink(before, after, floor)
     clear = _clear_excess(before, floor)
     return dict(entry, shrink=shrink, explains_most=bool(clear and shrink >= EXPLAINED_SHARE),
-                rms_ratio=after / before if before > 0 else 1.0)
+                rms_ratio=after / before if before > 0 else 1.0,
+                explains_visible=bool(before > floor and shrink >= EXPLAINED_SHARE))
 
 
 def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False,
@@ -553,7 +583,8 @@ def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False,
             return "score_z"
         if entry["sign_p"] <= SIGN_P:
             return "sign_test"
-        if entry["z_loss"] >= Z_LOSS:
+        if (entry["z_loss"] >= Z_LOSS and s.amplitude_z >= STRONG_AMPLITUDE_Z and entry.get("rms_ratio", 0.0) < 1.0
+                and (entry.get("z_loss_without_best", Z_LOSS) >= ONE_TEST_Z or entry.get("explains_visible", False))):
             return "loss_scaled_z"
         if entry.get("explains_most", False) and s.amplitude_z >= STRONG_AMPLITUDE_Z:
             return "explains_most"
@@ -786,39 +817,57 @@ def diagnose(
     # the default view's candidates were scored with these side findings in the model
     for step in steps:
         step["given"] = [e.name for e, _ in given] + step["given"]
-    if given and selected:
-        # The other way round: a side view's finding must hold with the default view's findings
-        # in its model. A specimen rings after every reversal, and without an accelerometer
-        # stiction was selected on the reversal view beside a true 3 t specimen at 9 Hz (an
-        # independent generator's series), gone once the specimen was in that view's model.
+    if selected:
+        # The other way round: each side view is screened again with the default view's findings
+        # in its model, and what it selects then replaces what it selected alone. A specimen
+        # rings after every reversal: without an accelerometer stiction was selected on the
+        # reversal view beside a true 3 t specimen at 9 Hz (an independent generator's series),
+        # gone once the specimen was in that view's model; and a true stiction of 1.4 beside a
+        # true 3 t specimen on the twin raised the reversal view's residual 0.8 % until the
+        # specimen was there (the loss-scaled rule asks an effect to lower it)
         main_terms = [(s.effect, s.setting) for s in selected]
         for view, view_effects, options in side_specs:
             side = side_views[view]
-            if not side or not side["selected"]:
+            if not side:
                 continue
             t0 = time.perf_counter()
-            kept_effects = [e for e in view_effects if e.name in side["selected"]]
-            check, *_ = _side_view(series, kept_effects, options, f"{view}_check", say, timings, main_terms)
+            check, check_terms, *_ = _side_view(series, view_effects, options, f"{view}_check", say, timings,
+                                                main_terms)
             timings[f"{view}_view_check"] = time.perf_counter() - t0
             dropped = [name for name in side["selected"] if name not in check["selected"]]
-            if dropped:
-                say(f"{', '.join(dropped)} no longer selected on the {view} view once "
+            added = [name for name in check["selected"] if name not in side["selected"]]
+            if not dropped and not added:
+                continue
+            for name in dropped:
+                say(f"{name} no longer selected on the {view} view once "
                     f"{', '.join(e.name for e, _ in main_terms)} is in its model")
-                # the view's own outcome, refitted with what it keeps
-                kept = [(e, st) for e, st in side_terms[view] if e.name not in dropped]
-                view_base = side_figures[view]["base"]
-                view_final = fit_base(side_scorers[view], kept) if kept else view_base
-                rms_kept = _rms(view_final.residuals)
-                side.update(selected=[e.name for e, _ in kept], dropped_given_default_view=dropped,
-                            rms_after=rms_kept,
-                            shrink=_shrink(side["rms_before"], rms_kept, side["noise_floor"]) if kept else 0.0,
-                            final=dict(view_final.base(), spread=view_final.spread),
-                            base_shift=_relative_shift(view_base.base(), view_final.base()),
-                            check={k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")})
-                side_steps += check["steps"]
-                given = [(e, st) for e, st in given if e.name not in dropped]
-                start = fit_base(scorer, given) if given else base
-                current = fit_base(scorer, list(given) + main_terms)
+            for name in added:
+                say(f"{name} selected on the {view} view once {', '.join(e.name for e, _ in main_terms)} "
+                    "is in its model")
+            # the view's own outcome, refitted with what it keeps and what it gained
+            kept = ([(e, st) for e, st in side_terms[view] if e.name not in dropped]
+                    + [(e, st) for e, st in check_terms if e.name in added])
+            view_base = side_figures[view]["base"]
+            view_final = fit_base(side_scorers[view], kept) if kept else view_base
+            rms_kept = _rms(view_final.residuals)
+            side.update(selected=[e.name for e, _ in kept], rms_after=rms_kept,
+                        shrink=_shrink(side["rms_before"], rms_kept, side["noise_floor"]) if kept else 0.0,
+                        final=dict(view_final.base(), spread=view_final.spread),
+                        base_shift=_relative_shift(view_base.base(), view_final.base()),
+                        check={k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")})
+            if dropped:
+                side["dropped_given_default_view"] = dropped
+            if added:
+                side["added_given_default_view"] = added
+                # an added effect is reported as that check scored it, with the default view's
+                # findings in the model
+                check_entries = {r["name"]: dict(r, view=view, given=check["given"]) for r in check["ranking"]}
+                side_ranking = [check_entries.get(r["name"], r) if r["name"] in added else r for r in side_ranking]
+            side_steps += check["steps"]
+            given = ([(e, st) for e, st in given if e.name not in dropped]
+                     + [(e, st) for e, st in check_terms if e.name in added])
+            start = fit_base(scorer, given) if given else base
+            current = fit_base(scorer, list(given) + main_terms)
     final = current
     rms_after = _rms(final.residuals)
     derived = [t.id for t in tests if not t.acceleration_measured]
@@ -938,7 +987,7 @@ def diagnose(
         reversal=side_views["reversal"],
         breakaway=breakaway,
         timings=timings,
-        settings={"z_select": Z_SELECT, "min_score": MIN_SCORE, "sign_p": SIGN_P, "improved_nats": IMPROVED_NATS, "z_loss": Z_LOSS,
+        settings={"z_select": Z_SELECT, "min_score": MIN_SCORE, "sign_p": SIGN_P, "improved_nats": IMPROVED_NATS, "z_loss": Z_LOSS, "one_test_z": ONE_TEST_Z,
                   "coefficient_z": COEFFICIENT_Z, "min_amplitude_z": MIN_AMPLITUDE_Z, "max_rms_rise": MAX_RMS_RISE,
                   "derived_amplitude_z": DERIVED_AMPLITUDE_Z,
                   "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,

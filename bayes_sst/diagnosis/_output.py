@@ -28,7 +28,9 @@ def rule_words(rule: str, settings: dict) -> str:
     floor = f"score >= {settings.get('min_score', 15.0):g} nats and "
     return {"score_z": floor + f">= {settings.get('z_select', 2.5):g} se",
             "sign_test": floor + "a sign test over the tests",
-            "loss_scaled_z": floor + f">= {settings.get('z_loss', 5.0):g}x the scatter of the tests it makes worse",
+            "loss_scaled_z": floor + f">= {settings.get('z_loss', 5.0):g}x the scatter of the tests it makes worse "
+                             "(amplitude resolved, residual lowered; a gain held by one test must remove most of "
+                             "a visible excess)",
             "explains_most": floor + "removes most of a clear excess",
             "coefficient_z": f"coefficient >= {settings.get('coefficient_z', 4.0):g} sd from zero, best of its "
                              "round; its score is weak by construction",
@@ -79,8 +81,11 @@ def format_diagnosis(data: dict) -> str:
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "
-        view = {"stroke": f"  (stroke view: {_STROKE})",
-                "reversal": f"  (reversal view: {_REVERSAL})"}.get(r.get("view"), "")
+        view = {"stroke": f"  (stroke view: {_STROKE}",
+                "reversal": f"  (reversal view: {_REVERSAL}"}.get(r.get("view"), "")
+        if view:
+            # an effect the side view took only in its second screening
+            view += (f"; scored with {', '.join(r['given'])} in its model)" if r.get("given") else ")")
         rule = (f"  [selected: {rule_words(rules[r['name']], data.get('settings', {}))}]"
                 if mark == "*" and r["name"] in rules else "")
         lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}")
