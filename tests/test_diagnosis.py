@@ -607,11 +607,11 @@ def test_without_an_accelerometer_the_diagnosis_takes_the_acceleration_from_a_qu
 
     def record(v_noise):
         v = 0.02 * w * np.cos(w * t) + rng.normal(0.0, v_noise, t.size)
-        return SimpleNamespace(u=u, get=lambda name: v if name == "v" else None)
+        return SimpleNamespace(u=u, sample_rate_hz=fs, get=lambda name: v if name == "v" else None)
 
-    assert quieter_recorded_velocity(record(2e-4), fs, 4 * f) is not None
-    assert quieter_recorded_velocity(record(2e-2), fs, 4 * f) is None
-    assert quieter_recorded_velocity(SimpleNamespace(u=u, get=lambda name: None), fs, 4 * f) is None
+    assert quieter_recorded_velocity(record(2e-4), 4 * f) is not None
+    assert quieter_recorded_velocity(record(2e-2), 4 * f) is None
+    assert quieter_recorded_velocity(SimpleNamespace(u=u, sample_rate_hz=fs, get=lambda name: None), 4 * f) is None
 
 
 def test_one_periodic_test_is_refused_with_the_reason():

@@ -20,8 +20,8 @@ import numpy as np
 from bayes_sst.effects import EffectData
 from bayes_sst.io import Series, table_number
 from bayes_sst.physics import strut_cubic_stiffness
-from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_series, without_steady_offsets,
-                               zero_phase_lowpass)
+from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_series, recorded_velocity_is_quieter,
+                               without_steady_offsets, zero_phase_lowpass)
 from bayes_sst.signals._filters import smoothed_variance, time_derivative
 from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 
@@ -121,29 +121,21 @@ def acceleration_of_recorded_velocity(v, sample_rate_hz: float, smoothing_s: flo
     return a0 - k * time_derivative(time_derivative(a0, sample_rate_hz), sample_rate_hz)
 
 
-def quieter_recorded_velocity(record, sample_rate_hz: float, cutoff_hz: float) -> np.ndarray | None:
+def quieter_recorded_velocity(record, cutoff_hz: float) -> np.ndarray | None:
     """The recorded v of a test without an accelerometer where its derivative is quieter in the
-    analysis band than u's second derivative (the fit's choice, signals._prepare), else None.
+    analysis band than u's second derivative (the fit's choice,
+    signals.recorded_velocity_is_quieter), else None.
 
     Why the diagnosis follows the fit here: an independent generator's clean series with a
     recorded v (0.2 mm/s of noise) and no `a`, its acceleration taken from u (20 um) as before,
-    left a residual of 191 N where the v-derived acceleration leaves 67 N (floor 69 N), and a specimen of
-    2.8 t at 13.7 Hz was selected (72 +- 50 nats): below its resonance it adds mass, above it it
+    left a residual of 191 N where the v-derived acceleration leaves 67 N (floor 69 N), and a
+    specimen of 2.8 t at 13.7 Hz was selected (72 +- 50 nats): below its resonance it adds mass, above it it
     does not, so it took the u-derived acceleration's noise, which rises with frequency, for a
     lighter deck at high frequency. With the acceleration from v the residual is 67 N and
     nothing scores (2.8 +- 2.7 nats)."""
-    v = record.get("v")
-    if v is None:
+    if not recorded_velocity_is_quieter(record, cutoff_hz, DIAGNOSIS_SIGNALS):
         return None
-    from bayes_sst.signals._prepare import _derivative_noise, _velocity_map
-
-    v = np.asarray(v, dtype=float)
-    from_v = _velocity_map(sample_rate_hz, cutoff_hz, DIAGNOSIS_SIGNALS, of_displacement=False)
-    from_u = _velocity_map(sample_rate_hz, cutoff_hz, DIAGNOSIS_SIGNALS, of_displacement=True)
-    if (_derivative_noise(v, sample_rate_hz, cutoff_hz, from_v)
-            <= _derivative_noise(np.asarray(record.u, dtype=float), sample_rate_hz, cutoff_hz, from_u)):
-        return v
-    return None
+    return np.asarray(record.get("v"), dtype=float)
 
 
 def derived_acceleration_noise(u, velocity, cutoff_hz: float, sample_rate_hz: float, lo: int, hi: int,
@@ -204,7 +196,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         measured_a = record.get("a") if p.acceleration_measured else None
         recorded_v = None
         if measured_a is None:
-            recorded_v = quieter_recorded_velocity(record, fs, cutoff)
+            recorded_v = quieter_recorded_velocity(record, cutoff)
             measured_a = (derived_acceleration(record.u, fs, VELOCITY_SMOOTHING_S) if recorded_v is None
                           else acceleration_of_recorded_velocity(recorded_v, fs, VELOCITY_SMOOTHING_S))
         a_raw = np.asarray(measured_a, dtype=float)

@@ -11,6 +11,7 @@ from bayes_sst.signals._prepare import (
     friction_load,
     prepare_series,
     prepare_test,
+    recorded_velocity_is_quieter,
     reversal_weight,
     without_steady_offsets,
 )
@@ -31,6 +32,7 @@ __all__ = [
     "periodic_component",
     "prepare_series",
     "prepare_test",
+    "recorded_velocity_is_quieter",
     "reversal_weight",
     "second_derivative",
     "steady_cycles",
