@@ -251,7 +251,7 @@ def test_the_loss_scaled_rule_asks_a_resolved_amplitude_and_a_one_test_gain_to_s
     chosen, entry = rule("position_friction", hinge, 13.6, 1000.0, 982.5, 977.5)
     assert entry["z_loss_without_best"] < ONE_TEST_Z and entry["shrink"] == pytest.approx(0.78, abs=0.01)
     assert chosen == "loss_scaled_z"
-    assert rule("position_friction", hinge, 13.6, 1000.0, 990.0, 977.5)[0] is None  # a third of the excess
+    assert rule("position_friction", hinge, 13.6, 1000.0, 990.0, 977.5)[0] is None  # 45 % of the excess
 
     specimen = [1.2, -2.6, 0.5, -0.1, 0.9, 0.9, -0.0, -0.6, -0.5, 0.4, -0.7, -0.5, 15.3, 12.6, -0.5, -0.0, -0.1, 0.1,
                 0.2, 0.1, 0.8, 4.8, 4.0, -2.0]
@@ -886,6 +886,10 @@ def test_a_side_view_finding_beside_a_default_view_finding_is_kept_when_real():
     assert "dropped_given_default_view" not in d.reversal
     assert d.reversal["added_given_default_view"] == ["stiction"]
     assert next(r for r in d.ranking if r["name"] == "stiction")["given"] == ["specimen"]
+    # the view reports the screening that took stiction: the specimen in its base, stiction lowering it
+    assert d.reversal["given"] == ["specimen"] == d.reversal["check"]["given"]
+    assert d.reversal["rms_before"] == d.reversal["check"]["rms_before"]
+    assert d.reversal["rms_after"] < d.reversal["rms_before"] and d.reversal["shrink"] > 0.0
 
 
 @pytest.mark.slow

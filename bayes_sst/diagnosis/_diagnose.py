@@ -40,8 +40,9 @@ table's rest at each reversal, where |u| is largest, projects onto their columns
 crosses zero, rising to 1 at 7 %) against that view's own base model. The side
 views are screened first; the effects they select enter the default view's model before its
 own effects are screened, and when the default view selects effects each side view is screened
-again with them in its model, and what it selects then replaces what it selected alone (a side
-effect no longer selectable is dropped; one that a default-view effect masked is added).
+again with them in its model: a side effect it no longer selects is dropped, one that a
+default-view effect masked is added (a kept one keeps its first reading), and a view so changed
+reports the second screening's residuals (its base with the default view's findings).
 Broadband tests add the oil_column check (bayes_sst.diagnosis._oil), scored on their
 command-to-motion frequency response; when it is the only effect selected, noise_floor,
 rms_before, rms_after and shrink are those of the frequency-response misfit (dimensionless).
@@ -644,10 +645,14 @@ def _grid_edge_notes(steps: Sequence[dict[str, Any]], selected_names: Sequence[s
     """A note for each selected effect whose grid parameter was best at the end of its searched
     range: its value there is a bound, and the truth may lie beyond it."""
     notes = []
+    read: set[str] = set()
     for step in steps:
         name = step.get("chosen")
-        if name not in selected_names:
+        # the first round that took it gave its reading (a side view's second screening may
+        # take a kept effect again)
+        if name not in selected_names or name in read:
             continue
+        read.add(name)
         entry = next(c for c in step["candidates"] if c["name"] == name)
         for key, side in entry.get("grid_edge", {}).items():
             note = (f"{name}: {key} is at the {side} end of its searched range "
@@ -819,7 +824,7 @@ def diagnose(
         step["given"] = [e.name for e, _ in given] + step["given"]
     if selected:
         # The other way round: each side view is screened again with the default view's findings
-        # in its model, and what it selects then replaces what it selected alone. A specimen
+        # in its model; what it no longer selects is dropped, what it selects anew is added. A specimen
         # rings after every reversal: without an accelerometer stiction was selected on the
         # reversal view beside a true 3 t specimen at 9 Hz (an independent generator's series),
         # gone once the specimen was in that view's model; and a true stiction of 1.4 beside a
@@ -834,6 +839,8 @@ def diagnose(
             check, check_terms, *_ = _side_view(series, view_effects, options, f"{view}_check", say, timings,
                                                 main_terms)
             timings[f"{view}_view_check"] = time.perf_counter() - t0
+            check_summary = {k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")}
+            side["check"] = check_summary
             dropped = [name for name in side["selected"] if name not in check["selected"]]
             added = [name for name in check["selected"] if name not in side["selected"]]
             if not dropped and not added:
@@ -844,17 +851,20 @@ def diagnose(
             for name in added:
                 say(f"{name} selected on the {view} view once {', '.join(e.name for e, _ in main_terms)} "
                     "is in its model")
-            # the view's own outcome, refitted with what it keeps and what it gained
+            # the view's outcome as the second screening sees it: its base with the default
+            # view's findings, and that refitted with what it keeps and what it gained (an added
+            # effect was selectable only with those findings in the model)
             kept = ([(e, st) for e, st in side_terms[view] if e.name not in dropped]
                     + [(e, st) for e, st in check_terms if e.name in added])
-            view_base = side_figures[view]["base"]
-            view_final = fit_base(side_scorers[view], kept) if kept else view_base
+            view_base = fit_base(side_scorers[view], main_terms)
+            view_final = fit_base(side_scorers[view], main_terms + kept) if kept else view_base
             rms_kept = _rms(view_final.residuals)
-            side.update(selected=[e.name for e, _ in kept], rms_after=rms_kept,
-                        shrink=_shrink(side["rms_before"], rms_kept, side["noise_floor"]) if kept else 0.0,
+            side.update(selected=[e.name for e, _ in kept], given=check["given"],
+                        rms_before=check["rms_before"], noise_floor=check["noise_floor"], rms_after=rms_kept,
+                        shrink=_shrink(check["rms_before"], rms_kept, check["noise_floor"]) if kept else 0.0,
+                        base=dict(view_base.base(), spread=view_base.spread),
                         final=dict(view_final.base(), spread=view_final.spread),
-                        base_shift=_relative_shift(view_base.base(), view_final.base()),
-                        check={k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")})
+                        base_shift=_relative_shift(view_base.base(), view_final.base()))
             if dropped:
                 side["dropped_given_default_view"] = dropped
             if added:
@@ -877,14 +887,14 @@ def diagnose(
         # measured: without an accelerometer, clean series score a specimen at up to 31 nats;
         # DERIVED_AMPLITUDE_Z kept all 15 clean series tried clean, where 3 had one selected
         # before (docs/diagnosis.md), but the derivation's errors beyond white noise are not modelled
-        notes.append(f"{', '.join(reads_a)} rests on an acceleration derived from u in "
+        notes.append(f"{', '.join(reads_a)} rests on an acceleration derived from u (or a recorded v) in "
                      f"{len(derived)} of {len(tests)} tests (no accelerometer): without one a light, "
                      "stiff specimen can be mimicked by the derivation's errors; confirm with a recorded `a`")
     at_reversals = [e.name for e in found if e.name in REVERSAL_EFFECTS]
     if derived and at_reversals:
         # measured on the twin at 200 Hz with `a` removed: 1.3 at 10 mm/s read as 5.3 +- 0.4
         # (at a Stribeck velocity of 3 mm/s), 1.2 at 20 mm/s as 1.23
-        notes.append(f"{', '.join(at_reversals)} is read at the reversals from an acceleration derived from u "
+        notes.append(f"{', '.join(at_reversals)} is read at the reversals from an acceleration derived from u or v "
                      f"in {len(derived)} of {len(tests)} tests (no accelerometer), which rounds off a "
                      "breakaway a few samples long: its static ratio can come out several times too far "
                      "from 1, beyond its sd; confirm with a recorded `a`")
