@@ -24,13 +24,12 @@ import time
 
 
 def _rules(diagnosis: dict) -> dict[str, str]:
-    """{selected effect: the rule that took it} from the rounds of every view."""
-    rules = {step["chosen"]: step["rule"] for step in diagnosis["steps"] if step.get("chosen")}
-    for entry in diagnosis["ranking"]:
-        if entry.get("rule"):
-            rules.setdefault(entry["name"], entry["rule"])
-    if diagnosis.get("oil_column", {}) and diagnosis["oil_column"].get("selected"):
-        rules.setdefault("oil_column", "oil_column_check")
+    """{selected effect: the rule that took it}; the oil column has its own check."""
+    from bayes_sst.diagnosis._output import selection_rules
+
+    rules = selection_rules(diagnosis)
+    if (diagnosis.get("oil_column") or {}).get("selected"):
+        rules["oil_column"] = "oil_column_check"
     return {name: rules.get(name, "?") for name in diagnosis["selected"]}
 
 

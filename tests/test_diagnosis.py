@@ -948,8 +948,8 @@ def test_a_side_view_finding_that_the_default_views_finding_explains_is_dropped(
 
     side_view = _diagnose._side_view
 
-    def with_stiction(series, effects, options, view, say, timings, given=()):
-        summary, terms, figures, scorer = side_view(series, effects, options, view, say, timings, given)
+    def with_stiction(series, effects, options, view, say, timings, given=(), scorer=None):
+        summary, terms, figures, scorer = side_view(series, effects, options, view, say, timings, given, scorer)
         if view == "reversal":
             stiction = next(e for e in effects if e.name == "stiction")
             terms = terms + [(stiction, {"stribeck_velocity": 0.01})]

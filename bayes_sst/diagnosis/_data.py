@@ -20,9 +20,9 @@ import numpy as np
 from bayes_sst.effects import EffectData
 from bayes_sst.io import Series, table_number
 from bayes_sst.physics import strut_cubic_stiffness
-from bayes_sst.signals import (SignalOptions, derived_acceleration, prepare_series, recorded_velocity_is_quieter,
-                               without_steady_offsets, zero_phase_lowpass)
-from bayes_sst.signals._filters import smoothed_variance, time_derivative
+from bayes_sst.signals import (SignalOptions, acceleration_of_recorded_velocity, derived_acceleration,
+                               prepare_series, recorded_velocity_is_quieter, without_steady_offsets,
+                               zero_phase_lowpass)
 from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 
 # The default view treats the signals as the fit does (but without the fit's 10 mm/s floor on
@@ -101,24 +101,6 @@ def strut_cubic_sign(series: Series) -> float:
     if gamma is None or h is None or l0 is None:
         return 1.0
     return -1.0 if strut_cubic_stiffness(1.0, gamma, h, l0) < 0 else 1.0
-
-
-def acceleration_of_recorded_velocity(v, sample_rate_hz: float, smoothing_s: float):
-    """The acceleration without an accelerometer from a recorded velocity, along v's last axis:
-
-        a0 = D(G_s * v),   a = a0 - k*D(D(a0)),   k = s_k^2/2 + h^2/6,
-
-    v smoothed by the fit's velocity kernel G_s (s_k^2 its sampled variance), differentiated once
-    at the recorded rate (h = 1/rate); the smoothing and the central difference each add their
-    second-order term times a'', which k takes out (derived_acceleration, from u, differentiates
-    twice and has h^2/3)."""
-    from scipy.ndimage import gaussian_filter1d
-
-    h = 1.0 / sample_rate_hz
-    k = smoothed_variance(smoothing_s * sample_rate_hz) * h * h / 2.0 + h * h / 6.0
-    a0 = time_derivative(gaussian_filter1d(np.asarray(v, dtype=float), smoothing_s * sample_rate_hz, axis=-1),
-                         sample_rate_hz)
-    return a0 - k * time_derivative(time_derivative(a0, sample_rate_hz), sample_rate_hz)
 
 
 def quieter_recorded_velocity(record, cutoff_hz: float) -> np.ndarray | None:

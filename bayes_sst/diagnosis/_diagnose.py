@@ -677,13 +677,18 @@ def _scale(series: Series, tests: Sequence[EffectData]) -> dict[str, float]:
 
 
 def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions, view: str, say,
-               timings, given: Sequence = ()) -> tuple[dict[str, Any], list, dict[str, Any], Scorer]:
+               timings, given: Sequence = (), scorer: Scorer | None = None
+               ) -> tuple[dict[str, Any], list, dict[str, Any], Scorer]:
     """Score `effects` on another view of the series (STROKE_SIGNALS or REVERSAL_SIGNALS), against
     that view's own base model (plus the `given` (effect, setting) terms). Returns the view's
     summary (for diagnosis.json), the selected (effect, setting) terms, the view's tests and
-    base model (for the page's figures) and its scorer (to refit the view)."""
-    tests = effect_data(series, options)
-    scorer = Scorer(tests, _scale(series, tests))
+    base model (for the page's figures) and its scorer (to refit the view). scorer: that view's
+    scorer from an earlier screening, whose data are reused (the plain fit below resets the
+    scale it carries)."""
+    if scorer is None:
+        tests = effect_data(series, options)
+        scorer = Scorer(tests, _scale(series, tests))
+    tests = scorer.tests
     say(f"{view} view: screening {', '.join(e.name for e in effects)}"
         + (f" with {', '.join(e.name for e, _ in given)} in the model" if given else "") + " ...")
     base = fit_base(scorer)
@@ -836,8 +841,8 @@ def diagnose(
             if not side:
                 continue
             t0 = time.perf_counter()
-            check, check_terms, *_ = _side_view(series, view_effects, options, f"{view}_check", say, timings,
-                                                main_terms)
+            check, check_terms, check_figures, _ = _side_view(series, view_effects, options, f"{view}_check", say,
+                                                              timings, main_terms, scorer=side_scorers[view])
             timings[f"{view}_view_check"] = time.perf_counter() - t0
             check_summary = {k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")}
             side["check"] = check_summary
@@ -856,7 +861,9 @@ def diagnose(
             # effect was selectable only with those findings in the model)
             kept = ([(e, st) for e, st in side_terms[view] if e.name not in dropped]
                     + [(e, st) for e, st in check_terms if e.name in added])
-            view_base = fit_base(side_scorers[view], main_terms)
+            view_base = check_figures["base"]
+            # effect priors scale with the base they are added to (fit_base)
+            side_scorers[view].base_scale.update(view_base.base())
             view_final = fit_base(side_scorers[view], main_terms + kept) if kept else view_base
             rms_kept = _rms(view_final.residuals)
             side.update(selected=[e.name for e, _ in kept], given=check["given"],

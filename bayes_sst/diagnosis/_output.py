@@ -37,6 +37,19 @@ def rule_words(rule: str, settings: dict) -> str:
             "breakaway": "the breakaway check (nothing else found; the score is the Stribeck column's)"}.get(rule, rule)
 
 
+def selection_rules(data: dict) -> dict[str, str]:
+    """{effect: the rule that first took it} from diagnosis.json's steps (not a later check's),
+    and "breakaway" for stiction that the breakaway check selected."""
+    rules: dict[str, str] = {}
+    for step in data.get("steps", []):
+        if "chosen" in step:
+            rules.setdefault(step["chosen"], step["rule"])
+    for r in data["ranking"]:
+        if r.get("rule") == "breakaway":
+            rules.setdefault(r["name"], "breakaway")
+    return rules
+
+
 def format_diagnosis(data: dict) -> str:
     """A short human-readable account: verdict, where, ranking (kN in the text, SI in the json)."""
     if data.get("rms_unit", "N") == "N":
@@ -71,13 +84,7 @@ def format_diagnosis(data: dict) -> str:
     if data.get("notes"):
         lines += ["", "notes (on the data and the findings):"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
-    rules: dict[str, str] = {}
-    for step in data.get("steps", []):
-        if "chosen" in step:  # the rule that first took it, not a later check's
-            rules.setdefault(step["chosen"], step["rule"])
-    for r in data["ranking"]:
-        if r.get("rule") == "breakaway":
-            rules.setdefault(r["name"], "breakaway")
+    rules = selection_rules(data)
     for r in data["ranking"]:
         params = ", ".join(f"{k} {v['mean']:.4g}" for k, v in r["params"].items())
         mark = "*" if r["name"] in data["selected"] else " "

@@ -2,7 +2,7 @@
 
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fourier_columns, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import acceleration_from_velocity, derived_acceleration, lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import acceleration_from_velocity, acceleration_of_recorded_velocity, derived_acceleration, lowpass_sos, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._prepare import (
     MIN_STEADY_CYCLES,
     PreparedTest,
@@ -19,6 +19,7 @@ from bayes_sst.signals._prepare import (
 __all__ = [
     "MIN_STEADY_CYCLES",
     "acceleration_from_velocity",
+    "acceleration_of_recorded_velocity",
     "accelerometer_disagreement",
     "CycleWindow",
     "PreparedTest",

@@ -87,10 +87,14 @@ def smoothed_variance(sigma_samples: float) -> float:
     return float(np.sum(weights * k * k) / np.sum(weights))
 
 
-def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float):
+def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float, differences: int = 2):
     """The acceleration without an accelerometer, from v = D(u smoothed by a Gaussian of sd s):
 
-        a0 = D(v),   a = a0 - k*D(D(a0)),   k = s^2/2 + h^2/3,
+        a0 = D(v),   a = a0 - k*D(D(a0)),   k = s^2/2 + differences*h^2/6,
+
+    differences: the central differences from the smoothed signal to a0, 2 here (h^2/3); 1
+    where v is a recorded velocity smoothed by the kernel (acceleration_of_recorded_velocity),
+    each difference adding h^2/6*a''.
 
     D the central difference (time_derivative), s^2 the variance of the smoothing kernel as
     sampled (smoothed_variance), h = 1/fs.
@@ -106,7 +110,7 @@ def acceleration_from_velocity(v, sample_rate_hz: float, smoothing_s: float):
     """
     h = 1.0 / sample_rate_hz
     # the sampled, truncated kernel's own variance (0.86 s^2 at s = half a sample), not s^2
-    k = smoothed_variance(smoothing_s * sample_rate_hz) * h * h / 2.0 + h * h / 3.0
+    k = smoothed_variance(smoothing_s * sample_rate_hz) * h * h / 2.0 + differences * h * h / 6.0
     a0 = time_derivative(v, sample_rate_hz)
     return a0 - k * time_derivative(time_derivative(a0, sample_rate_hz), sample_rate_hz)
 
@@ -126,6 +130,19 @@ def derived_acceleration(u, sample_rate_hz: float, smoothing_s: float):
 
     smoothed = gaussian_filter1d(np.asarray(u, dtype=float), smoothing_s * sample_rate_hz, axis=-1)
     return acceleration_from_velocity(time_derivative(smoothed, sample_rate_hz), sample_rate_hz, smoothing_s)
+
+
+def acceleration_of_recorded_velocity(v, sample_rate_hz: float, smoothing_s: float):
+    """The acceleration without an accelerometer from a recorded velocity, along v's last axis:
+
+        a = acceleration_from_velocity(G_s * v, differences=1),
+
+    v smoothed by the fit's velocity kernel and differentiated once, the smoothing's and the
+    difference's second-order terms, (s^2/2 + h^2/6)*a'', taken out."""
+    from scipy.ndimage import gaussian_filter1d
+
+    smoothed = gaussian_filter1d(np.asarray(v, dtype=float), smoothing_s * sample_rate_hz, axis=-1)
+    return acceleration_from_velocity(smoothed, sample_rate_hz, smoothing_s, differences=1)
 
 
 def second_derivative(x, sample_rate_hz: float):
