@@ -1204,6 +1204,50 @@ def test_the_breakaway_check_reads_static_friction_that_drops_at_once():
     assert clean["excess"] + 3 * clean["excess_se"] < BREAKAWAY_EXCESS
 
 
+def test_the_noise_share_of_the_breakaway_statistic_is_what_coulomb_friction_reads():
+    """On an ideal Coulomb record (a 0.5 Hz sine, F = Me*a + Ke*u + Fk*sign(v) plus white noise of
+    8 % of Fk, exact coefficients) the range statistic d reads below zero (a half window's noise
+    range against a whole one's: -0.03..-0.06 over seeds 0-7), and d - null, its noise share taken
+    from the mid-stroke window with an ideal step added, reads zero within its se (about 0.01)."""
+    from bayes_sst.diagnosis._breakaway import _test_reversals
+
+    fs, f, A, Me, Ke, Fk = 500.0, 0.5, 0.05, 13200.0, 7.2e5, 12500.0
+    t = np.arange(0.0, 40.0, 1.0 / fs)
+    w = 2 * np.pi * f
+    u, v, a = A * np.sin(w * t), A * w * np.cos(w * t), -A * w * w * np.sin(w * t)
+    rng = np.random.default_rng(3)
+    F = Me * a + Ke * u + Fk * np.sign(v) + rng.normal(0.0, 0.08 * Fk, t.size)
+    found = _test_reversals(u, F, a, f, fs, 0, t.size, {"Me": Me, "Ke": Ke, "Ce": 0.0}, 0.5, Fk)
+    d = np.array([x["d"] for x in found])
+    corrected = np.array([x["d"] - x["null"] for x in found])
+    se = corrected.std(ddof=1) / math.sqrt(len(found))
+    assert len(found) >= 38
+    assert d.mean() < -0.02
+    assert abs(corrected.mean()) < 3 * se and se < 0.02
+    # this slow sine turns with Me*A*w^2 = 0.5 Fk: every reversal is one where the table rests
+    assert all(x["inertia"] < 1.0 for x in found)
+
+
+def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_rests():
+    """The twin's Karnopp-like stiction (Fs/Fk = 1.4, Stribeck velocity 0.5 mm/s) at 200 Hz: over
+    every reversal the check reads 0.06-0.08 (the fast tests sweep through v = 0 and show no
+    breakaway), at the reversals where the table rests 0.27-0.30 (measured 2026-11-27 on seeds 21,
+    31, 32), 0.2 above the sweeping ones, and it selects stiction from there; the clean twin reads
+    within 0.03 of zero at rest and does not select."""
+    from bayes_sst.diagnosis._breakaway import RESTING_EXCESS
+
+    karnopp = _breakaway_of(simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=200.0,
+                                     truth_overrides={"static_ratio": 1.4, "stribeck_velocity": 0.0005}))
+    assert karnopp["excess"] < 0.1 and karnopp["selected_by"] == "resting_reversals" and karnopp["selectable"]
+    resting = karnopp["resting"]
+    assert 0.2 <= resting["resting"]["excess"] <= 0.4 and resting["lead"] >= 0.1
+    assert karnopp["static_excess"] == resting["resting"]["excess"]
+    clean = _breakaway_of(simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=200.0))
+    assert not clean["selectable"] and clean["selected_by"] is None
+    assert abs(clean["resting"]["resting"]["excess"]) < 0.03
+    assert clean["resting"]["resting"]["excess"] + 3 * clean["resting"]["resting"]["se"] < RESTING_EXCESS
+
+
 @pytest.mark.slow
 def test_stiction_without_a_stribeck_velocity_is_selected_by_the_breakaway_check_and_ranked_first():
     """diagnose() on the Karnopp-like twin of the test above: nothing else is selected, so the

@@ -31,6 +31,21 @@ clean valve-generator table (Stribeck peak 1.02-1.05) up to 0.092 at z 5.7, LuGr
 tables up to 0.83 at z 1.6. Stiction: the twin's Karnopp 1.4 reads 0.20-0.23 at 1 kHz (z 7) and
 0.06-0.08 at 200 Hz (the peak falls between samples). docs/diagnosis.md has the table; hence
 the thresholds below.
+
+The mean over every reversal dilutes stiction: the table rests at a reversal only where the
+force that turns it, Me*|a| there, is below the friction swing (about 2 Fk); a fast test sweeps
+through v = 0 and its friction flips at once, whatever Fs is. So the check also reads the
+resting reversals alone (Me*max|a| within the window below RESTING_INERTIA*L_j*Fmu_j) against the
+sweeping ones (above SWEEPING_INERTIA times it), each d_i less its noise's own share: the same
+range statistic over the mid-stroke window with an ideal step of 2 L_j*Fmu_j added, which is
+what d_i would read on Coulomb friction with that noise (the range of a half window against a
+whole one reads 0.02-0.07 below zero). Stiction lifts the resting reversals only; a recorder's
+anti-alias overshoot, a delay, a specimen or a mismatch that grows with speed lift the sweeping
+ones as much or more. Measured (2026-11-27 night, base-fit coefficients): the first independent
+generator's Fs/Fk = 1.4 (a breakaway under a sample long) reads 0.11-0.16 at rest where its mean
+over all reversals read -0.05..+0.06, the twin's Karnopp 1.4 0.27-0.39 at 200 Hz and 1 kHz
+(0.06-0.23 over all), while every clean series of four simulators that reads 0.08 or more at
+rest (valve generator, anti-alias filter) reads its sweeping reversals higher still.
 """
 
 from __future__ import annotations
@@ -52,6 +67,17 @@ WINDOW_PERIODS = 0.05
 # the velocity for r: a light low-pass of u, at least this cut-off (Hz) or 6 test frequencies
 VELOCITY_CUTOFF_HZ = 30.0
 MIN_TESTS = 3
+# the resting reversals' reading: Me*max|a| in the window below RESTING_INERTIA kinetic frictions
+# rests, above SWEEPING_INERTIA sweeps; the resting excess and its z, and its lead over the
+# sweeping reversals and that lead's z, that select stiction (docs/diagnosis.md, the check's table)
+RESTING_INERTIA = 1.0
+SWEEPING_INERTIA = 3.0
+RESTING_EXCESS = 0.10
+RESTING_Z = 3.0
+RESTING_LEAD = 0.05
+RESTING_LEAD_Z = 2.0
+# a test enters the resting (sweeping) reading with at least this many such reversals
+MIN_REVERSALS_PER_TEST = 2
 
 
 def _reversal_indices(u: np.ndarray, frequency_hz: float, fs: float, lo: int, hi: int) -> np.ndarray:
@@ -63,32 +89,78 @@ def _reversal_indices(u: np.ndarray, frequency_hz: float, fs: float, lo: int, hi
     return i
 
 
-def _test_excess(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha) -> list[float]:
-    """d_i (in N) of every reversal of one test whose windows fit inside the record."""
+def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kinetic) -> list[dict[str, float]]:
+    """For every reversal of one test whose windows fit inside the record: d (the module
+    docstring's d_i), null (the same statistic on the mid-stroke window with an ideal Coulomb
+    step of 2*kinetic added) and inertia (Me*max|a| in the window over the kinetic friction)."""
     # sensor offsets need no removing: a constant in F, u or a shifts r by a constant, which
     # neither range sees, and the velocity and the reversals come from derivatives of u
     Me, Ke, Ce = coefficients["Me"], coefficients["Ke"], coefficients["Ce"]
-    v = time_derivative(zero_phase_lowpass(u, min(max(VELOCITY_CUTOFF_HZ, 6.0 * frequency_hz), 0.4 * fs), fs), fs)
+    cutoff = min(max(VELOCITY_CUTOFF_HZ, 6.0 * frequency_hz), 0.4 * fs)
+    v = time_derivative(zero_phase_lowpass(u, cutoff, fs), fs)
+    smooth_a = zero_phase_lowpass(a, cutoff, fs)
     r = F - Me * a - Ke * u - Ce * np.abs(v) ** alpha * np.sign(v)
     period = 1.0 / frequency_hz
     h = max(int(round(min(WINDOW_S, WINDOW_PERIODS * period) * fs)), 2)
     quarter = int(round(0.25 * period * fs))
-    excess = []
+    before = np.arange(-h, h + 1) < 0
+    reversals = []
     for i in _reversal_indices(u, frequency_hz, fs, lo, hi):
         q = i + quarter
         if i - h < 0 or q + h + 1 > len(r):
             continue
         around, mid = r[i - h:i + h + 1], r[q - h:q + h + 1]
-        excess.append(float(np.ptp(around) - np.ptp(mid)))
-    return excess
+        direction = 1.0 if np.mean(v[i:i + h + 1]) >= 0 else -1.0
+        step = np.where(before, -direction, direction) * kinetic
+        reversals.append({"d": float(np.ptp(around) - np.ptp(mid)) / kinetic - 2.0,
+                          "null": float(np.ptp(mid + step) - np.ptp(mid)) / kinetic - 2.0,
+                          "inertia": Me * float(np.max(np.abs(smooth_a[i - h:i + h + 1]))) / kinetic})
+    return reversals
+
+
+def _pooled(per_test: dict[str, list[float]], min_tests: int) -> dict[str, float] | None:
+    """Mean of the values over the tests that have MIN_REVERSALS_PER_TEST of them (weighted by
+    their counts) with its se: the larger of the test means' scatter and the values' own (with
+    three or four tests the first alone can come out near zero), or None under min_tests tests."""
+    groups = [np.asarray(v, float) for v in per_test.values() if len(v) >= MIN_REVERSALS_PER_TEST]
+    if len(groups) < max(min_tests, 2):
+        return None
+    means = np.array([g.mean() for g in groups])
+    counts = np.array([len(g) for g in groups], float)
+    values = np.concatenate(groups)
+    mean = float(np.sum(counts * means) / counts.sum())
+    se = max(float(np.std(means, ddof=1) / np.sqrt(len(means))), float(np.std(values, ddof=1) / np.sqrt(len(values))))
+    return {"excess": mean, "se": se, "z": mean / se if se > 0 else 0.0, "tests": len(groups),
+            "reversals": int(counts.sum())}
+
+
+def _resting_reading(reversals: dict[str, list[dict[str, float]]]) -> dict[str, Any]:
+    """The resting reversals' excess over the noise's share, the sweeping ones', the lead of the
+    first over the second and whether they select stiction (module docstring)."""
+    resting = _pooled({k: [x["d"] - x["null"] for x in v if x["inertia"] < RESTING_INERTIA]
+                       for k, v in reversals.items()}, MIN_TESTS)
+    sweeping = _pooled({k: [x["d"] - x["null"] for x in v if x["inertia"] >= SWEEPING_INERTIA]
+                        for k, v in reversals.items()}, 2)
+    reading: dict[str, Any] = {"resting": resting, "sweeping": sweeping, "lead": None, "lead_se": None,
+                               "selectable": False}
+    if resting is None or sweeping is None:
+        return reading
+    lead = resting["excess"] - sweeping["excess"]
+    lead_se = float(np.hypot(resting["se"], sweeping["se"]))
+    reading.update(lead=lead, lead_se=lead_se,
+                   selectable=bool(resting["excess"] >= RESTING_EXCESS and resting["z"] >= RESTING_Z
+                                   and lead >= RESTING_LEAD and lead >= RESTING_LEAD_Z * lead_se))
+    return reading
 
 
 def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) -> dict[str, Any] | None:
-    """The module docstring's excess over the tests with a recorded acceleration, or None
-    where fewer than MIN_TESTS have one."""
+    """The module docstring's excess over the tests with a recorded acceleration, and its
+    resting reversals' reading, or None where fewer than MIN_TESTS have one. selectable: either
+    reading selects stiction; static_excess (Fs/Fk - 1) and its se come from the one that did."""
     names = list(fit.names)
     per_test = {}
     counts = []
+    reversals = {}
     for j, test in enumerate(tests):
         if not test.acceleration_measured:
             continue
@@ -105,12 +177,13 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
         if kinetic <= 0:
             continue
         lo, hi = int(test.index.min()), int(test.index.max()) + 1
-        d = _test_excess(np.asarray(columns["u"], float), np.asarray(columns["F"], float),
-                         np.asarray(columns["a"], float), test.frequency_hz, test.sample_rate_hz,
-                         lo, hi, coefficients, fit.alpha)
-        if d:
-            per_test[test.id] = float(np.mean(d)) / kinetic - 2.0
-            counts.append(len(d))
+        found = _test_reversals(np.asarray(columns["u"], float), np.asarray(columns["F"], float),
+                                np.asarray(columns["a"], float), test.frequency_hz, test.sample_rate_hz,
+                                lo, hi, coefficients, fit.alpha, kinetic)
+        if found:
+            per_test[test.id] = float(np.mean([x["d"] for x in found]))
+            counts.append(len(found))
+            reversals[test.id] = found
     if len(per_test) < MIN_TESTS:
         return None
     values = np.array(list(per_test.values()))
@@ -118,7 +191,18 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
     excess = float(np.sum(weights * values) / weights.sum())
     excess_se = float(np.std(values, ddof=1) / np.sqrt(len(values)))
     z = excess / excess_se if excess_se > 0 else 0.0
+    every = bool(excess >= BREAKAWAY_EXCESS and z >= BREAKAWAY_Z)
+    resting = _resting_reading(reversals)
+    # the reading that selected: the resting reversals' where they did (the mean over every
+    # reversal is diluted by the sweeping ones), else the mean over all
+    if resting["selectable"]:
+        selected_by, ratio_excess, ratio_se = "resting_reversals", resting["resting"]["excess"], resting["resting"]["se"]
+    else:
+        selected_by, ratio_excess, ratio_se = ("all_reversals" if every else None), excess, excess_se
     return {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
             "reversals": int(weights.sum()), "positive_share": float(np.mean(values > 0)),
-            "per_test": per_test, "selectable": bool(excess >= BREAKAWAY_EXCESS and z >= BREAKAWAY_Z),
-            "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z}}
+            "per_test": per_test, "resting": resting, "selectable": every or resting["selectable"],
+            "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
+            "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,
+                           "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,
+                           "resting_z": RESTING_Z, "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}

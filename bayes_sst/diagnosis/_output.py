@@ -81,6 +81,18 @@ def format_diagnosis(data: dict) -> str:
                   f"{check['tests']} tests, {check['reversals']} reversals; selects stiction from "
                   f"{100 * check['thresholds']['excess']:.0f} % and z {check['thresholds']['z']:g}"
                   + ("" if check.get("used") else ", not used: another effect was selected") + ")"]
+        reading = check.get("resting") or {}
+        resting, sweeping = reading.get("resting"), reading.get("sweeping")
+        if resting:
+            thresholds = check["thresholds"]
+            lines.append(f"  at the {resting['reversals']} reversals where the table rests (Me*|a| under "
+                         f"{thresholds['resting_inertia']:g} Fk): {100 * resting['excess']:+.1f} +- "
+                         f"{100 * resting['se']:.1f} %"
+                         + (f", {100 * reading['lead']:+.1f} +- {100 * reading['lead_se']:.1f} % over the "
+                            f"{sweeping['reversals']} it sweeps through" if sweeping else
+                            ", no reversal it sweeps through to compare")
+                         + f" (selects from {100 * thresholds['resting_excess']:.0f} %, z {thresholds['resting_z']:g}, "
+                           f"a lead of {100 * thresholds['resting_lead']:.0f} % at z {thresholds['resting_lead_z']:g})")
     if data.get("notes"):
         lines += ["", "notes (on the data and the findings):"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
