@@ -1,7 +1,7 @@
 """`bayes-sst diagnose` on series of the independent generator (benchmarks/independent_generator.py)
 with one withheld effect each, or none: is the effect selected (and first), how much of the
 excess does it remove, how close are its parameters; clean series must give "none". Stiction
-(Fs/Fk = 1.4) is among the cases although the diagnosis finds it on one seed of five only (3):
+(Fs/Fk = 1.4) is among the cases although the diagnosis finds it on two seeds of five (1, 3):
 this generator breaks the deck away within one sample (docs/diagnosis.md, the breakaway check).
 
     PYTHONPATH=. .venv/bin/python benchmarks/independent_diagnosis.py --seeds 0 1 --dir /tmp/independent_effects \

@@ -1204,34 +1204,73 @@ def test_the_breakaway_check_reads_static_friction_that_drops_at_once():
     assert clean["excess"] + 3 * clean["excess_se"] < BREAKAWAY_EXCESS
 
 
-def test_the_noise_share_of_the_breakaway_statistic_is_what_coulomb_friction_reads():
-    """On an ideal Coulomb record (a 0.5 Hz sine, F = Me*a + Ke*u + Fk*sign(v) plus white noise of
-    8 % of Fk, exact coefficients) the range statistic d reads below zero (a half window's noise
-    range against a whole one's: -0.03..-0.06 over seeds 0-7), and d - null, its noise share taken
-    from the mid-stroke window with an ideal step added, reads zero within its se (about 0.01)."""
+def _coulomb_reversals(Ke_factor=1.0, seed=3):
+    """_test_reversals on an ideal Coulomb record (a 0.5 Hz sine, F = Me*a + Ke*u + Fk*sign(v)
+    plus white noise of 8 % of Fk), read with the model's Ke times Ke_factor."""
     from bayes_sst.diagnosis._breakaway import _test_reversals
 
     fs, f, A, Me, Ke, Fk = 500.0, 0.5, 0.05, 13200.0, 7.2e5, 12500.0
     t = np.arange(0.0, 40.0, 1.0 / fs)
     w = 2 * np.pi * f
     u, v, a = A * np.sin(w * t), A * w * np.cos(w * t), -A * w * w * np.sin(w * t)
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     F = Me * a + Ke * u + Fk * np.sign(v) + rng.normal(0.0, 0.08 * Fk, t.size)
-    found = _test_reversals(u, F, a, f, fs, 0, t.size, {"Me": Me, "Ke": Ke, "Ce": 0.0}, 0.5, Fk)
-    d = np.array([x["d"] for x in found])
-    corrected = np.array([x["d"] - x["null"] for x in found])
-    se = corrected.std(ddof=1) / math.sqrt(len(found))
-    assert len(found) >= 38
-    assert d.mean() < -0.02
-    assert abs(corrected.mean()) < 3 * se and se < 0.02
+    return _test_reversals(u, F, a, f, fs, 0, t.size, {"Me": Me, "Ke": Ke * Ke_factor, "Ce": 0.0}, 0.5, Fk)
+
+
+def test_the_noise_share_of_the_breakaway_statistic_is_what_coulomb_friction_reads():
+    """On an ideal Coulomb record the range statistic d reads below zero (a half window's noise
+    range against a whole one's: -0.03..-0.06 over seeds 0-7), and further with a stiffness
+    error (the mid-stroke window then holds a trend: -0.08..-0.11 at Ke 10 % off), while d - null, its
+    noise share taken from the detrended mid-stroke window with an ideal step added, reads zero
+    within its se (about 0.01) for the exact Ke and for Ke 10 % off either way."""
+    for factor in (1.0, 0.9, 1.1):
+        found = _coulomb_reversals(factor)
+        d = np.array([x["d"] for x in found])
+        corrected = np.array([x["d"] - x["null"] for x in found])
+        se = corrected.std(ddof=1) / math.sqrt(len(found))
+        assert len(found) >= 38
+        assert d.mean() < -0.02
+        assert abs(corrected.mean()) < 3 * se and se < 0.02
     # this slow sine turns with Me*A*w^2 = 0.5 Fk: every reversal is one where the table rests
-    assert all(x["inertia"] < 1.0 for x in found)
+    assert all(x["inertia"] < 1.0 for x in _coulomb_reversals())
+
+
+def test_the_resting_reading_selects_a_lift_of_the_resting_reversals_only():
+    """_resting_reading on hand-made reversals (four tests, twelve reversals each): a lift of 0.2
+    at the resting reversals alone selects; the same lift at the sweeping ones as well (an
+    anti-alias overshoot or a delay lifts every reversal) does not; nor does the resting lift
+    without sweeping reversals to compare, nor one spread over too few tests."""
+    from bayes_sst.diagnosis._breakaway import _pooled, _resting_reading
+
+    rng = np.random.default_rng(0)
+
+    def reversals(resting_lift, sweeping_lift, tests=4, sweeping=True):
+        out = {}
+        for k in range(tests):
+            rows = [{"d": resting_lift + rng.normal(0, 0.05), "null": 0.0, "inertia": 0.5} for _ in range(12)]
+            if sweeping:
+                rows += [{"d": sweeping_lift + rng.normal(0, 0.05), "null": 0.0, "inertia": 5.0} for _ in range(12)]
+            rows += [{"d": 1.0, "null": 0.0, "inertia": 2.0}]  # between the groups: in neither
+            out[f"T{k}"] = rows
+        return out
+
+    alone = _resting_reading(reversals(0.2, 0.0))
+    assert alone["selectable"] and alone["resting"]["excess"] == pytest.approx(0.2, abs=0.03)
+    assert alone["lead"] == pytest.approx(0.2, abs=0.04) and alone["resting"]["reversals"] == 48
+    assert not _resting_reading(reversals(0.2, 0.2))["selectable"]
+    assert not _resting_reading(reversals(0.2, 0.0, sweeping=False))["selectable"]
+    assert not _resting_reading(reversals(0.2, 0.0, tests=2))["selectable"]
+    # the se is the larger of the test means' scatter and the values' own
+    pooled = _pooled({"A": [0.1, 0.3], "B": [0.1, 0.3], "C": [0.1, 0.3]}, 3)
+    assert pooled["excess"] == pytest.approx(0.2) and pooled["se"] == pytest.approx(0.1 * math.sqrt(6 / 5) / math.sqrt(6))
+    assert _pooled({"A": [0.1, 0.3], "B": [0.2]}, 2) is None  # B has one reversal: one test left
 
 
 def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_rests():
     """The twin's Karnopp-like stiction (Fs/Fk = 1.4, Stribeck velocity 0.5 mm/s) at 200 Hz: over
     every reversal the check reads 0.06-0.08 (the fast tests sweep through v = 0 and show no
-    breakaway), at the reversals where the table rests 0.27-0.30 (measured 2026-11-27 on seeds 21,
+    breakaway), at the reversals where the table rests 0.28-0.31 (measured 2026-11-27 on seeds 21,
     31, 32), 0.2 above the sweeping ones, and it selects stiction from there; the clean twin reads
     within 0.03 of zero at rest and does not select."""
     from bayes_sst.diagnosis._breakaway import RESTING_EXCESS

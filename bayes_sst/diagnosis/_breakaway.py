@@ -35,17 +35,22 @@ the thresholds below.
 The mean over every reversal dilutes stiction: the table rests at a reversal only where the
 force that turns it, Me*|a| there, is below the friction swing (about 2 Fk); a fast test sweeps
 through v = 0 and its friction flips at once, whatever Fs is. So the check also reads the
-resting reversals alone (Me*max|a| within the window below RESTING_INERTIA*L_j*Fmu_j) against the
-sweeping ones (above SWEEPING_INERTIA times it), each d_i less its noise's own share: the same
-range statistic over the mid-stroke window with an ideal step of 2 L_j*Fmu_j added, which is
-what d_i would read on Coulomb friction with that noise (the range of a half window against a
-whole one reads 0.02-0.07 below zero). Stiction lifts the resting reversals only; a recorder's
-anti-alias overshoot, a delay, a specimen or a mismatch that grows with speed lift the sweeping
-ones as much or more. Measured (2026-11-27 night, base-fit coefficients): the first independent
-generator's Fs/Fk = 1.4 (a breakaway under a sample long) reads 0.11-0.16 at rest where its mean
-over all reversals read -0.05..+0.06, the twin's Karnopp 1.4 0.27-0.39 at 200 Hz and 1 kHz
-(0.06-0.23 over all), while every clean series of four simulators that reads 0.08 or more at
-rest (valve generator, anti-alias filter) reads its sweeping reversals higher still.
+resting reversals alone (Me*max|a| within the window under RESTING_INERTIA*L_j*Fmu_j) against
+the sweeping ones (Me*max|a| at least SWEEPING_INERTIA times it; those in between enter neither),
+each d_i less its noise's own share, null_i: the same d statistic with the reversal's window
+replaced by the mid-stroke window, straight line removed, plus an ideal Coulomb step of
+2 L_j*Fmu_j, i.e. what d_i would read on Coulomb friction with that noise:
+
+    d_i - null_i = (range of r at the reversal - range of (detrended mid-stroke r + step))/(L_j*Fmu_j)
+
+The range of a half window against a whole one puts d_i itself 0.03-0.06 below zero on a white-
+noise Coulomb record, and a mid-stroke trend (Ke, or Ke - w^2 Me, off by a few per cent) moves
+it further; the straight line is removed because at the reversal that trend is flat (u and a
+at their extremes), so d - null reads zero for either sign of the error (a reviewer measured
+-0.07..+0.06 over Ke -10..+10 % before it was removed). Stiction lifts the resting reversals
+only; a recorder's anti-alias overshoot, a delay, a specimen or a mismatch that grows with speed
+lift the sweeping ones as much or more. Measured 2026-11-27 night with the base fit's
+coefficients: docs/diagnosis.md (the breakaway check) has the table.
 """
 
 from __future__ import annotations
@@ -67,8 +72,8 @@ WINDOW_PERIODS = 0.05
 # the velocity for r: a light low-pass of u, at least this cut-off (Hz) or 6 test frequencies
 VELOCITY_CUTOFF_HZ = 30.0
 MIN_TESTS = 3
-# the resting reversals' reading: Me*max|a| in the window below RESTING_INERTIA kinetic frictions
-# rests, above SWEEPING_INERTIA sweeps; the resting excess and its z, and its lead over the
+# the resting reversals' reading: Me*max|a| in the window under RESTING_INERTIA kinetic frictions
+# rests, from SWEEPING_INERTIA on sweeps (between: neither); the resting excess and its z, and its lead over the
 # sweeping reversals and that lead's z, that select stiction (docs/diagnosis.md, the check's table)
 RESTING_INERTIA = 1.0
 SWEEPING_INERTIA = 3.0
@@ -91,8 +96,9 @@ def _reversal_indices(u: np.ndarray, frequency_hz: float, fs: float, lo: int, hi
 
 def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kinetic) -> list[dict[str, float]]:
     """For every reversal of one test whose windows fit inside the record: d (the module
-    docstring's d_i), null (the same statistic on the mid-stroke window with an ideal Coulomb
-    step of 2*kinetic added) and inertia (Me*max|a| in the window over the kinetic friction)."""
+    docstring's d_i), null (its noise share: the detrended mid-stroke window with an ideal
+    Coulomb step of 2*kinetic added, against the mid-stroke window) and inertia (Me*max|a| in
+    the window over the kinetic friction)."""
     # sensor offsets need no removing: a constant in F, u or a shifts r by a constant, which
     # neither range sees, and the velocity and the reversals come from derivatives of u
     Me, Ke, Ce = coefficients["Me"], coefficients["Ke"], coefficients["Ce"]
@@ -103,7 +109,8 @@ def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kine
     period = 1.0 / frequency_hz
     h = max(int(round(min(WINDOW_S, WINDOW_PERIODS * period) * fs)), 2)
     quarter = int(round(0.25 * period * fs))
-    before = np.arange(-h, h + 1) < 0
+    offsets = np.arange(-h, h + 1)
+    before = offsets < 0
     reversals = []
     for i in _reversal_indices(u, frequency_hz, fs, lo, hi):
         q = i + quarter
@@ -112,8 +119,10 @@ def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kine
         around, mid = r[i - h:i + h + 1], r[q - h:q + h + 1]
         direction = 1.0 if np.mean(v[i:i + h + 1]) >= 0 else -1.0
         step = np.where(before, -direction, direction) * kinetic
+        slope, intercept = np.polyfit(offsets, mid, 1)
+        flat = mid - (slope * offsets + intercept)
         reversals.append({"d": float(np.ptp(around) - np.ptp(mid)) / kinetic - 2.0,
-                          "null": float(np.ptp(mid + step) - np.ptp(mid)) / kinetic - 2.0,
+                          "null": float(np.ptp(flat + step) - np.ptp(mid)) / kinetic - 2.0,
                           "inertia": Me * float(np.max(np.abs(smooth_a[i - h:i + h + 1]))) / kinetic})
     return reversals
 
@@ -122,7 +131,8 @@ def _pooled(per_test: dict[str, list[float]], min_tests: int) -> dict[str, float
     """Mean of the values over the tests that have MIN_REVERSALS_PER_TEST of them (weighted by
     their counts) with its se: the larger of the test means' scatter and the values' own (with
     three or four tests the first alone can come out near zero), or None under min_tests tests."""
-    groups = [np.asarray(v, float) for v in per_test.values() if len(v) >= MIN_REVERSALS_PER_TEST]
+    groups = [g for g in (np.asarray(v, float) for v in per_test.values())
+              if np.all(np.isfinite(g)) and len(g) >= MIN_REVERSALS_PER_TEST]
     if len(groups) < max(min_tests, 2):
         return None
     means = np.array([g.mean() for g in groups])
@@ -186,6 +196,8 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
             reversals[test.id] = found
     if len(per_test) < MIN_TESTS:
         return None
+    # the reading over every reversal keeps its first se (the test means' scatter alone) and its
+    # thresholds, so that what it selected before it selects now; _pooled is the resting reading's
     values = np.array(list(per_test.values()))
     weights = np.array(counts, dtype=float)
     excess = float(np.sum(weights * values) / weights.sum())
@@ -197,8 +209,10 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
     # reversal is diluted by the sweeping ones), else the mean over all
     if resting["selectable"]:
         selected_by, ratio_excess, ratio_se = "resting_reversals", resting["resting"]["excess"], resting["resting"]["se"]
+    elif every:
+        selected_by, ratio_excess, ratio_se = "all_reversals", excess, excess_se
     else:
-        selected_by, ratio_excess, ratio_se = ("all_reversals" if every else None), excess, excess_se
+        selected_by, ratio_excess, ratio_se = None, None, None
     return {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
             "reversals": int(weights.sum()), "positive_share": float(np.mean(values > 0)),
             "per_test": per_test, "resting": resting, "selectable": every or resting["selectable"],

@@ -83,16 +83,22 @@ def format_diagnosis(data: dict) -> str:
                   + ("" if check.get("used") else ", not used: another effect was selected") + ")"]
         reading = check.get("resting") or {}
         resting, sweeping = reading.get("resting"), reading.get("sweeping")
-        if resting:
-            thresholds = check["thresholds"]
+        thresholds = check.get("thresholds", {})
+        if resting and resting.get("excess") is not None and "resting_inertia" in thresholds:
+            lead = ""
+            if sweeping and reading.get("lead") is not None and reading.get("lead_se"):
+                lead = (f", leading the {sweeping['reversals']} it sweeps through by {100 * reading['lead']:+.1f} "
+                        f"+- {100 * reading['lead_se']:.1f} % (z {reading['lead'] / reading['lead_se']:.1f})")
+            elif not sweeping:
+                lead = ", no reversal it sweeps through to compare"
             lines.append(f"  at the {resting['reversals']} reversals where the table rests (Me*|a| under "
                          f"{thresholds['resting_inertia']:g} Fk): {100 * resting['excess']:+.1f} +- "
-                         f"{100 * resting['se']:.1f} %"
-                         + (f", {100 * reading['lead']:+.1f} +- {100 * reading['lead_se']:.1f} % over the "
-                            f"{sweeping['reversals']} it sweeps through" if sweeping else
-                            ", no reversal it sweeps through to compare")
-                         + f" (selects from {100 * thresholds['resting_excess']:.0f} %, z {thresholds['resting_z']:g}, "
-                           f"a lead of {100 * thresholds['resting_lead']:.0f} % at z {thresholds['resting_lead_z']:g})")
+                         f"{100 * resting['se']:.1f} % (z {resting['z']:.1f}){lead}; selects from "
+                         f"{100 * thresholds['resting_excess']:.0f} % at z {thresholds['resting_z']:g} with a lead of "
+                         f"{100 * thresholds['resting_lead']:.0f} % at z {thresholds['resting_lead_z']:g}")
+        if check.get("selected_by") and check.get("used"):
+            lines.append("  stiction selected by the reading over "
+                         + ("the resting reversals" if check["selected_by"] == "resting_reversals" else "all reversals"))
     if data.get("notes"):
         lines += ["", "notes (on the data and the findings):"] + [f"  {note}" for note in data["notes"]]
     lines += ["", "candidate effects (score = elpd difference by leave-one-test-out, nats):"]
