@@ -73,8 +73,9 @@ WINDOW_PERIODS = 0.05
 VELOCITY_CUTOFF_HZ = 30.0
 MIN_TESTS = 3
 # the resting reversals' reading: Me*max|a| in the window under RESTING_INERTIA kinetic frictions
-# rests, from SWEEPING_INERTIA on sweeps (between: neither); the resting excess and its z, and its lead over the
-# sweeping reversals and that lead's z, that select stiction (docs/diagnosis.md, the check's table)
+# rests, from SWEEPING_INERTIA on sweeps (between: neither); the resting excess and its z, and
+# its lead over the sweeping reversals and that lead's z, that select stiction
+# (docs/diagnosis.md, the check's table)
 RESTING_INERTIA = 1.0
 SWEEPING_INERTIA = 3.0
 RESTING_EXCESS = 0.10
