@@ -53,16 +53,10 @@ def _make(path: Path, generator, seed, fs, ratio):
 
 
 def _reading(path: Path) -> dict:
-    from bayes_sst.diagnosis._breakaway import breakaway_check
-    from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS, effect_data
-    from bayes_sst.diagnosis._diagnose import _scale
-    from bayes_sst.diagnosis._engine import Scorer
-    from bayes_sst.diagnosis._screen import fit_base
+    from bayes_sst.diagnosis._diagnose import breakaway_reading
     from bayes_sst.io import load_series
 
-    series = load_series(path)
-    tests = effect_data(series, DIAGNOSIS_SIGNALS)
-    check = breakaway_check(series, tests, fit_base(Scorer(tests, _scale(series, tests))))
+    check = breakaway_reading(load_series(path))
     if check is None:
         return {}
     reading = check["resting"]

@@ -1177,14 +1177,9 @@ def test_a_specimen_damped_to_the_top_of_its_range_has_no_resonance_and_is_at_it
 
 
 def _breakaway_of(series):
-    from bayes_sst.diagnosis._breakaway import breakaway_check
-    from bayes_sst.diagnosis._diagnose import _scale
-    from bayes_sst.diagnosis._engine import Scorer
-    from bayes_sst.diagnosis._screen import fit_base
+    from bayes_sst.diagnosis._diagnose import breakaway_reading
 
-    tests = effect_data(series)
-    scorer = Scorer(tests, _scale(series, tests))
-    return breakaway_check(series, tests, fit_base(scorer))
+    return breakaway_reading(series)
 
 
 def test_the_breakaway_check_reads_static_friction_that_drops_at_once():

@@ -169,8 +169,6 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
     resting reversals' reading, or None where fewer than MIN_TESTS have one. selectable: either
     reading selects stiction; static_excess (Fs/Fk - 1) and its se come from the one that did."""
     names = list(fit.names)
-    per_test = {}
-    counts = []
     reversals = {}
     for j, test in enumerate(tests):
         if not test.acceleration_measured:
@@ -192,15 +190,14 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
                                 np.asarray(columns["a"], float), test.frequency_hz, test.sample_rate_hz,
                                 lo, hi, coefficients, fit.alpha, kinetic)
         if found:
-            per_test[test.id] = float(np.mean([x["d"] for x in found]))
-            counts.append(len(found))
             reversals[test.id] = found
-    if len(per_test) < MIN_TESTS:
+    if len(reversals) < MIN_TESTS:
         return None
+    per_test = {k: float(np.mean([x["d"] for x in v])) for k, v in reversals.items()}
     # the reading over every reversal keeps its first se (the test means' scatter alone) and its
     # thresholds, so that what it selected before it selects now; _pooled is the resting reading's
     values = np.array(list(per_test.values()))
-    weights = np.array(counts, dtype=float)
+    weights = np.array([len(v) for v in reversals.values()], dtype=float)
     excess = float(np.sum(weights * values) / weights.sum())
     excess_se = float(np.std(values, ddof=1) / np.sqrt(len(values)))
     z = excess / excess_se if excess_se > 0 else 0.0
@@ -216,7 +213,7 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
         selected_by, ratio_excess, ratio_se = None, None, None
     return {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
             "reversals": int(weights.sum()), "positive_share": float(np.mean(values > 0)),
-            "per_test": per_test, "resting": resting, "selectable": every or resting["selectable"],
+            "per_test": per_test, "resting": resting, "selectable": selected_by is not None,
             "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
             "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,
                            "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,

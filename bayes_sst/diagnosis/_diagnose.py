@@ -749,6 +749,13 @@ def _broadband_only(series: Series, started: float) -> Diagnosis:
     )
 
 
+def breakaway_reading(series: Series, signals: SignalOptions = DIAGNOSIS_SIGNALS) -> dict[str, Any] | None:
+    """The breakaway check (bayes_sst.diagnosis._breakaway) on `series` with the base model that
+    diagnose() fits first, without the rest of the diagnosis: for its tests and benchmarks."""
+    tests = effect_data(series, signals)
+    return breakaway_check(series, tests, fit_base(Scorer(tests, _scale(series, tests))))
+
+
 def diagnose(
     series: Series,
     *,
