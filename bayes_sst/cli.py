@@ -27,6 +27,13 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def add_exclude_argument(parser) -> None:
+    """--exclude-test: tests of the series' manifest to leave out (load_series(..., exclude=))."""
+    parser.add_argument("--exclude-test", nargs="+", default=(), metavar="TEST_ID",
+                        help="leave these tests of the manifest out (their CSV files are not read), e.g. a test "
+                             "the analysis refuses; the run records them")
+
+
 def _cmd_fit(args) -> int:
     from dataclasses import replace
 
@@ -39,7 +46,7 @@ def _cmd_fit(args) -> int:
     check_run_target(args.out, overwrite=args.force)
     started = time.perf_counter()
     _progress(f"reading {args.series} ...")
-    series = load_series(args.series)
+    series = load_series(args.series, exclude=args.exclude_test)
     options = SignalOptions(cutoff_multiple=args.cutoff_multiple)
     if args.reversal_band is not None:  # the user's band holds for every test, accelerometer or not
         options = replace(options, reversal_band=args.reversal_band, reversal_band_without_accelerometer=None)
@@ -131,6 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reversal-speed", type=float, default=None, metavar="M_PER_S",
                    help="the band reaches at least this speed, up to half the peak speed (default 0.01 m/s: "
                         "friction exceeds its kinetic level below a few Stribeck velocities)")
+    add_exclude_argument(p)
     p.add_argument("--force", action="store_true", help="replace an existing run folder")
     p.set_defaults(handler=_cmd_fit)
 

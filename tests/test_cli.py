@@ -115,3 +115,45 @@ def test_fit_shared_option_fixes_the_mass_between_tests(tmp_path):
     assert summary["between_test_spread"]["Me"]["relative_sd_q95"] == 0.0
     assert summary["between_test_spread"]["Ke"]["relative_sd_q95"] > 0.0
     assert "shared by all tests" in (run / "summary.txt").read_text()
+
+
+def test_a_test_the_analysis_refuses_can_be_left_out_and_the_run_remembers_it(tmp_path, capsys):
+    from dataclasses import replace
+
+    import numpy as np
+
+    from bayes_sst.inference._predictive import run_prepared
+    from bayes_sst.io import load_series, read_run_tree, write_series
+    from bayes_sst.signals._cycles import fundamental_phase
+    from bayes_sst.twin import simulate
+
+    made = simulate("sst-paper", seed=5)
+    spoiled_id = made.tests[3].id
+    record = made.tests[3]
+    # every other cycle (from an upward crossing of the fundamental, as the analysis counts
+    # them) at 80 % of the amplitude: no two steady cycles in a row
+    _, phase = fundamental_phase(record.u, record.t, record.spec.frequency_hz)
+    cycle = np.floor((2 * np.pi * record.spec.frequency_hz * record.t + phase) / (2 * np.pi)).astype(int)
+    columns = dict(record.columns, u=record.u * np.where(cycle % 2 == 0, 1.0, 0.8))
+    tests = list(made.tests)
+    tests[3] = replace(record, columns=columns)
+    series = tmp_path / "series"
+    write_series(replace(made, tests=tuple(tests)), series)
+
+    run = tmp_path / "run"
+    fit_argv = ["fit", str(series), "--out", str(run), "--chains", "2", "--draws", "60", "--warmup", "60",
+                "--extensions", "0"]
+    assert main(fit_argv) == 2
+    err = capsys.readouterr().err
+    assert f"{spoiled_id}.csv" in err and "steady cycle" in err and f"--exclude-test {spoiled_id}" in err, err
+    assert not run.exists()
+
+    assert main(fit_argv + ["--exclude-test", spoiled_id]) == 0
+    assert f"tests {spoiled_id} of the manifest are left out" in capsys.readouterr().out
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["left_out"] == [spoiled_id] and summary["n_tests"] == len(made.tests) - 1
+    # the report, diagnosis and design read the run's series back from its folder without it
+    prepared = run_prepared(read_run_tree(run))
+    assert [t.id for t in prepared] == [t.id for t in made.tests if t.id != spoiled_id]
+    # and a series passed whole is read without it as well
+    assert len(run_prepared(read_run_tree(run), load_series(series))) == len(made.tests) - 1

@@ -1231,6 +1231,48 @@ def test_the_noise_share_of_the_breakaway_statistic_is_what_coulomb_friction_rea
     assert all(x["inertia"] < 1.0 for x in _coulomb_reversals())
 
 
+def _resting_record_reversals(static_ratio, rest_s=0.2, seed=4):
+    """_test_reversals on a record whose table rests rest_s at every reversal (longer than the
+    fixed window's 2h = 160 ms): a 0.25 Hz cycle of half-cosine strokes of 50 mm between rests;
+    while it rests, the friction F - Ke*u ramps from +Fk to -Fs (signs of the new direction),
+    and from the breakaway on it is kinetic again; white noise of 3 % of Fk on F."""
+    from bayes_sst.diagnosis._breakaway import _test_reversals
+
+    fs, f, A, Me, Ke, Fk = 500.0, 0.25, 0.05, 13200.0, 7.2e5, 12500.0
+    T, n_cycles = 1.0 / f, 10
+    stroke = T / 2 - rest_s
+    w = np.pi / stroke
+    t = np.arange(0.0, n_cycles * T, 1.0 / fs)
+    tau = np.mod(t, T / 2)          # time within the half cycle: stroke, then rest
+    up = np.mod(t, T) < T / 2        # strokes up in the first half cycle
+    sign = np.where(up, 1.0, -1.0)
+    moving = tau < stroke
+    u = np.where(moving, -sign * A * np.cos(w * tau), sign * A)
+    v = np.where(moving, sign * A * w * np.sin(w * tau), 0.0)
+    a = np.where(moving, sign * A * w * w * np.cos(w * tau), 0.0)
+    share = np.clip((tau - stroke) / rest_s, 0.0, 1.0)
+    friction = np.where(moving, Fk * sign, sign * (Fk - share * (Fk + static_ratio * Fk)))
+    rng = np.random.default_rng(seed)
+    F = Me * a + Ke * u + friction + rng.normal(0.0, 0.03 * Fk, t.size)
+    return _test_reversals(u, F, a, f, fs, 0, t.size, {"Me": Me, "Ke": Ke, "Ce": 0.0}, 0.5, Fk)
+
+
+def test_the_breakaway_window_widens_over_a_rest_longer_than_itself():
+    """A rest of 200 ms against a fixed window of +-80 ms: the fixed window holds only part of
+    the resting force's ramp and reads below zero (d_fixed: -0.21 here, -0.53 for Fs = Fk)
+    whatever Fs is, while the window widened by the rest reads Fs/Fk - 1 over its noise share,
+    and zero for Fs = Fk. Its 0.32 for 0.4 (measured): the last resting sample holds 0.99 of the
+    ramp (0.376 without noise), and the ramp's end is one sample where the flat levels of the
+    noise share have many to reach their noise's extremes (0.356 at 1 % noise)."""
+    sticking = _resting_record_reversals(1.4)
+    clean = _resting_record_reversals(1.0)
+    assert len(sticking) >= 16 and len(clean) >= 16
+    assert all(0.18 <= x["rest_s"] <= 0.3 and x["inertia"] < 1.0 for x in sticking)
+    assert np.mean([x["d_fixed"] for x in sticking]) < 0.0
+    assert 0.28 <= np.mean([x["d"] - x["null"] for x in sticking]) <= 0.4
+    assert abs(np.mean([x["d"] - x["null"] for x in clean])) < 0.05
+
+
 def test_the_resting_reading_selects_a_lift_of_the_resting_reversals_only():
     """_resting_reading on hand-made reversals (four tests, twelve reversals each): a lift of 0.2
     at the resting reversals alone selects; the same lift at the sweeping ones as well (an

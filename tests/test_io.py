@@ -668,3 +668,39 @@ def test_huge_integer_frequency(folder):
 def test_manifest_path_in_missing_folder(tmp_path):
     message = assert_error(tmp_path / "gone" / "series.json", "gone", "no such series folder")
     assert "series.json" not in message
+
+
+# --- leaving tests out -------------------------------------------------------------------
+
+
+def test_excluded_tests_are_not_read_and_are_recorded(folder):
+    full = load_series(folder)
+    (folder / "T02.csv").write_text("t,u,F\n0,1\n")  # a broken file the exclusion must not read
+    assert "T02.csv" in error_of(folder)
+    series = load_series(folder, exclude=["T02"])
+    assert [t.id for t in series.tests] == [t.id for t in full.tests if t.id != "T02"]
+    assert series.left_out == ("T02",)
+    kept = series.tests[0]
+    assert np.array_equal(kept.F, full.test(kept.id).F)
+
+
+def test_excluding_an_unknown_id_names_it_and_the_known_ones(folder):
+    with pytest.raises(SeriesFormatError) as info:
+        load_series(folder, exclude=["T02", "T9"])
+    message = str(info.value)
+    assert "series.json" in message and "'T9'" in message and "T01, T02" in message, message
+    assert "'T02'" not in message, message
+
+
+def test_excluding_every_test_is_refused(folder):
+    ids = [t.id for t in load_series(folder).tests]
+    with pytest.raises(SeriesFormatError, match="every test is left out"):
+        load_series(folder, exclude=ids)
+
+
+def test_series_without_drops_tests_and_extends_left_out(folder):
+    series = load_series(folder, exclude=["T01"])
+    fewer = series.without(["T02", "absent"])
+    assert [t.id for t in fewer.tests] == [t.id for t in series.tests if t.id != "T02"]
+    assert fewer.left_out == ("T01", "T02")
+    assert series.without("absent") is series

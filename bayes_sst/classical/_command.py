@@ -21,6 +21,8 @@ def add_parser(subparsers):
         "Fmu, Ce, alpha from the dissipative force. Writes classical.json (SI) and classical.txt.",
     )
     p.add_argument("series", help="series folder (with series.json)")
+    from bayes_sst.cli import add_exclude_argument
+    add_exclude_argument(p)
     p.add_argument("--out", required=True, help="output folder to create")
     p.add_argument("--cycle", type=int, default=-2,
                    help="which steady cycle of each test, Python index (default -2: the second-to-last)")
@@ -40,7 +42,7 @@ def run(args) -> int:
 
     force = bool(getattr(args, "force", False))
     check_run_target(args.out, overwrite=force)
-    series = load_series(args.series)
+    series = load_series(args.series, exclude=args.exclude_test)
     result = classical_identification(
         series,
         cycle=getattr(args, "cycle", -2),

@@ -32,6 +32,8 @@ def add_parser(subparsers):
     p.add_argument("--out", default=None, help="output folder to create (default: RUN/design)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.add_argument("--series", default=None, help="series folder (default: the one the run records)")
+    from bayes_sst.cli import add_exclude_argument
+    add_exclude_argument(p)
     p.add_argument("--stroke", type=float, default=None, metavar="M", help="half stroke, m (overrides the series' table.limits)")
     p.add_argument("--max-velocity", type=float, default=None, metavar="M_S", help="velocity limit, m/s")
     p.add_argument("--max-acceleration", type=float, default=None, metavar="M_S2", help="acceleration limit, m/s^2")
@@ -64,7 +66,7 @@ def run(args) -> int:
     check_run_target(out, overwrite=args.force)
     candidates = read_candidates(args.candidates) if args.candidates else None
     tree = read_run_tree(args.run)
-    series = load_series(args.series) if args.series else None
+    series = load_series(args.series, exclude=args.exclude_test) if args.series else None
     result = design(
         tree,
         targets=targets,

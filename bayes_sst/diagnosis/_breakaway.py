@@ -12,9 +12,10 @@ away, Fs instead of Fk. Per test j, at the record rate,
     r(t) = F - Me*a - Ke*u - Ce*|v|^alpha*sign(v)          (the friction, plus noise)
 
 swings at a reversal from +Fk through the rest to -Fs and on to -Fk (signs of the new
-direction), so with h = min(80 ms, T/20)
+direction), so with h = min(80 ms, T/20) and W_i the rest [t_i0, t_i1] (where u stays within a
+few of its noise's sds of its value at the reversal) widened by h on either side,
 
-    d_i = (range of r over |t - t_i| <= h  -  range of r over |t - t_i - T/4| <= h)/(L_j*Fmu_j) - 2
+    d_i = (range of r over W_i  -  range of r over W_i + T/4)/(L_j*Fmu_j) - 2
 
 is about Fs/Fk - 1 for each reversal i at t_i (an extreme of u); the mid-stroke window, where
 the table slides at its kinetic level, holds the noise's own range, and L_j is the test's
@@ -23,7 +24,11 @@ then cancel in the range (a sine test fixes only Ke - (2 pi f)^2*Me, and per-tes
 off in Ke put a peak-based first version 0.5-2 from zero). Me and Ke are the population's, Ce
 and Fmu each test's. excess = the tests' mean of d (weighted by reversals), excess_se from the
 scatter of the per-test means. Only tests with a recorded acceleration enter: a derived one
-rounds off the breakaway.
+rounds off the breakaway. Why the rest widens the window: a window shorter than the rest holds
+only part of the resting force's ramp, neither the breakaway nor the kinetic level on either
+side, so its range falls short of 2 Fk. On a fourth simulator (Fs/Fk = 1.4) whose table rests
+40-150 ms at its slow reversals, those reversals read -0.5 to -0.9 with the fixed window and
+0.3 to 0.7 with the widened one (2026-11-28).
 
 The check reads any reversal dynamics the base model lacks: a force delay or a specimen
 ringing after each reversal read 0.1-1.8 (so it selects only where no other effect was), a
@@ -82,6 +87,12 @@ RESTING_EXCESS = 0.10
 RESTING_Z = 3.0
 RESTING_LEAD = 0.05
 RESTING_LEAD_Z = 2.0
+# the rest at a reversal, where u stays within the larger of REST_NOISE_SDS of its noise's sds
+# and REST_SHARE of the test's amplitude of its value at the reversal, widens the window by
+# its length; a reversal whose window would pass MAX_WINDOW_PERIODS of a period is left out
+REST_NOISE_SDS = 4.0
+REST_SHARE = 0.002
+MAX_WINDOW_PERIODS = 0.25
 # a test enters the resting (sweeping) reading with at least this many such reversals
 MIN_REVERSALS_PER_TEST = 2
 
@@ -95,11 +106,27 @@ def _reversal_indices(u: np.ndarray, frequency_hz: float, fs: float, lo: int, hi
     return i
 
 
+def _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic) -> tuple[float, float, float]:
+    """d, null and inertia (the module docstring's) of the reversal window r[start:start+n]
+    against the mid-stroke window a quarter period later."""
+    around, mid = r[start:start + n], r[start + quarter:start + quarter + n]
+    offsets = np.arange(n) - n // 2
+    direction = 1.0 if np.mean(v[start + n // 2:start + n]) >= 0 else -1.0
+    step = np.where(offsets < 0, -direction, direction) * kinetic
+    slope, intercept = np.polyfit(offsets, mid, 1)
+    flat = mid - (slope * offsets + intercept)
+    return (float(np.ptp(around) - np.ptp(mid)) / kinetic - 2.0,
+            float(np.ptp(flat + step) - np.ptp(mid)) / kinetic - 2.0,
+            Me * float(np.max(np.abs(smooth_a[start:start + n]))) / kinetic)
+
+
 def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kinetic) -> list[dict[str, float]]:
-    """For every reversal of one test whose windows fit inside the record: d (the module
-    docstring's d_i), null (its noise share: the detrended mid-stroke window with an ideal
-    Coulomb step of 2*kinetic added, against the mid-stroke window) and inertia (Me*max|a| in
-    the window over the kinetic friction)."""
+    """For every reversal of one test whose windows fit inside the record: over the window
+    widened by the rest, d (the module docstring's d_i), null (its noise share: the detrended
+    mid-stroke window with an ideal Coulomb step of 2*kinetic added, against the mid-stroke
+    window), inertia (Me*max|a| in the window over the kinetic friction) and rest_s (the rest's
+    length); and d_fixed, d over the fixed window |t - t_i| <= h, which the reading over all
+    reversals keeps."""
     # sensor offsets need no removing: a constant in F, u or a shifts r by a constant, which
     # neither range sees, and the velocity and the reversals come from derivatives of u
     Me, Ke, Ce = coefficients["Me"], coefficients["Ke"], coefficients["Ce"]
@@ -110,21 +137,30 @@ def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kine
     period = 1.0 / frequency_hz
     h = max(int(round(min(WINDOW_S, WINDOW_PERIODS * period) * fs)), 2)
     quarter = int(round(0.25 * period * fs))
-    offsets = np.arange(-h, h + 1)
-    before = offsets < 0
+    # the rest: where u stays within `still` of its value at the reversal (a few of its noise's
+    # sds, or REST_SHARE of the amplitude, which a sine without a rest leaves within 0.01 T)
+    second = np.diff(u[lo:hi], 2)
+    u_noise = 1.4826 * float(np.median(np.abs(second - np.median(second)))) / np.sqrt(6.0)
+    still = max(REST_NOISE_SDS * u_noise, REST_SHARE * 0.5 * float(np.ptp(u[lo:hi])))
+    reach = int(0.25 * period * fs)
+    longest = int(MAX_WINDOW_PERIODS * period * fs)
     reversals = []
     for i in _reversal_indices(u, frequency_hz, fs, lo, hi):
-        q = i + quarter
-        if i - h < 0 or q + h + 1 > len(r):
+        first, last = i, i
+        while first > max(i - reach, 0) and abs(u[first - 1] - u[i]) <= still:
+            first -= 1
+        while last < min(i + reach, len(u) - 1) and abs(u[last + 1] - u[i]) <= still:
+            last += 1
+        if i - h < 0 or i + quarter + h + 1 > len(r):
             continue
-        around, mid = r[i - h:i + h + 1], r[q - h:q + h + 1]
-        direction = 1.0 if np.mean(v[i:i + h + 1]) >= 0 else -1.0
-        step = np.where(before, -direction, direction) * kinetic
-        slope, intercept = np.polyfit(offsets, mid, 1)
-        flat = mid - (slope * offsets + intercept)
-        reversals.append({"d": float(np.ptp(around) - np.ptp(mid)) / kinetic - 2.0,
-                          "null": float(np.ptp(flat + step) - np.ptp(mid)) / kinetic - 2.0,
-                          "inertia": Me * float(np.max(np.abs(smooth_a[i - h:i + h + 1]))) / kinetic})
+        d_fixed, _, _ = _window_reading(r, v, smooth_a, i - h, 2 * h + 1, quarter, Me, kinetic)
+        start, n = first - h, last - first + 2 * h + 1
+        # a widened window that leaves the record or passes MAX_WINDOW_PERIODS: the reversal
+        # enters neither group of the resting reading (NaN inertia)
+        d, null, inertia = ((np.nan,) * 3 if start < 0 or start + quarter + n > len(r) or n > longest
+                            else _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic))
+        reversals.append({"d": d, "null": null, "inertia": inertia, "rest_s": (last - first) / fs,
+                          "d_fixed": d_fixed})
     return reversals
 
 
@@ -193,7 +229,7 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
             reversals[test.id] = found
     if len(reversals) < MIN_TESTS:
         return None
-    per_test = {k: float(np.mean([x["d"] for x in v])) for k, v in reversals.items()}
+    per_test = {k: float(np.mean([x["d_fixed"] for x in v])) for k, v in reversals.items()}
     # the reading over every reversal keeps its first se (the test means' scatter alone) and its
     # thresholds, so that what it selected before it selects now; _pooled is the resting reading's
     values = np.array(list(per_test.values()))

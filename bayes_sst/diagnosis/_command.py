@@ -18,6 +18,8 @@ def add_parser(subparsers):
         "(SI), diagnosis.txt and diagnosis.html into --out.",
     )
     p.add_argument("series", help="series folder (with series.json)")
+    from bayes_sst.cli import add_exclude_argument
+    add_exclude_argument(p)
     p.add_argument("--run", default=None, help="a run folder of 'bayes-sst fit' on this series (its alpha "
                    "starts the base model's profile)")
     p.add_argument("--out", required=True, help="output folder to create")
@@ -40,7 +42,7 @@ def run(args) -> int:
         print(f"[{time.perf_counter() - started:6.1f} s] {message}", file=sys.stderr, flush=True)
 
     check_run_target(args.out, overwrite=args.force)
-    series = load_series(args.series)
+    series = load_series(args.series, exclude=args.exclude_test)
     tree = read_run_tree(args.run) if args.run else None
     result = diagnose(series, run_tree=tree, progress=progress)
     write_diagnosis(args.out, result, overwrite=args.force)

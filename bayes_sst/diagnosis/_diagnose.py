@@ -768,6 +768,10 @@ def diagnose(
     say = progress or (lambda message: None)
     started = time.perf_counter()
     timings: dict[str, float] = {}
+    if run_tree is not None:
+        from bayes_sst.inference._predictive import run_left_out
+
+        series = series.without(run_left_out(run_tree))
     if len(series.periodic_tests) < MIN_PERIODIC_TESTS:
         if any(t.spec.kind == "broadband" for t in series.tests):
             say(f"{len(series.periodic_tests)} periodic test(s): the force effects need at least "
@@ -778,6 +782,8 @@ def diagnose(
             f"each effect test by test, leaving one test out at a time, and needs at least {MIN_PERIODIC_TESTS}")
     tests = effect_data(series, signals)
     notes = [note for t in tests for note in t.notes]
+    if series.left_out:
+        notes.insert(0, f"tests {', '.join(series.left_out)} of the manifest are left out, as asked")
     for note in notes:
         say(f"!! {note}")
     scorer = Scorer(tests, _scale(series, tests))
@@ -989,7 +995,7 @@ def diagnose(
                          "(breakaway check); the friction drops to its kinetic level at once, so the force model's "
                          "residual does not shrink, and the static ratio is a lower bound where the peak falls "
                          "between samples (the first independent generator's 1.4, a breakaway under one "
-                         "sample long, read 1.11-1.15 at 200 Hz-1 kHz)")
+                         "sample long, read 1.11-1.14 at 200 Hz-1 kHz)")
     order = {name: k for k, name in enumerate(selected_names)}
     ranking.sort(key=lambda r: (order.get(r["name"], len(order)), -r["score"]))
     notes += _grid_edge_notes(steps, selected_names)

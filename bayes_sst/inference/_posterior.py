@@ -153,6 +153,9 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
         # exact regressors (report, diagnosis, design) from the run folder alone
         "series_path": str(series.path.resolve()) if series.path is not None else "",
         "signal_options": json.dumps(asdict(signals)) if signals is not None else "",
+        # tests of the manifest left out of the fit (load_series(..., exclude=...)): the run's
+        # series is read back without them
+        "left_out": json.dumps(list(series.left_out)),
     }
     tree = xr.DataTree.from_dict(
         {

@@ -71,7 +71,14 @@ def run_series(tree, command: str = "report"):
     if not Path(path).is_dir():
         raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
                          f"pass its new location (bayes-sst {command} RUN --series SERIES)")
-    return load_series(path)
+    return load_series(path, exclude=run_left_out(tree))
+
+
+def run_left_out(tree) -> list[str]:
+    """Ids of the series' tests the run's fit left out (none for runs that predate the record)."""
+    import json
+
+    return list(json.loads(tree.attrs.get("left_out", "") or "[]"))
 
 
 def run_prepared(tree, series=None) -> list[PreparedTest]:
@@ -84,6 +91,7 @@ def run_prepared(tree, series=None) -> list[PreparedTest]:
 
     if series is None:
         series = run_series(tree)
+    series = series.without(run_left_out(tree))
     prepared = {t.id: t for t in prepare_series(series, run_signal_options(tree))}
     wanted = [str(t) for t in tree["posterior"]["test"].values]
     missing = [t for t in wanted if t not in prepared]

@@ -234,6 +234,7 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     n_steady = int(constant["steady_samples"].values.sum()) if "steady_samples" in constant else None
     summary = {
         "series": tree.attrs.get("series", ""),
+        "left_out": json.loads(tree.attrs.get("left_out", "") or "[]"),
         "parameters": parameters,
         "between_test_spread": spread,
         "divergences": divergences,
@@ -306,6 +307,8 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
         + (f", {summary['seconds']:.1f} s" if summary.get("seconds") else ""),
         "",
     ]
+    if summary.get("left_out"):
+        lines[-1:-1] = [f"(tests {', '.join(summary['left_out'])} of the manifest are left out, as asked)"]
     if summary.get("broadband_tests_not_fitted"):
         lines[-1:-1] = [f"(broadband tests {', '.join(summary['broadband_tests_not_fitted'])} are not in the force "
                         "fit, which reads sine and triangle tests; bayes-sst ocrf and diagnose use them)"]

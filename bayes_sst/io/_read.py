@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Iterable
 
 from ._csv import CsvTable, format_number, check_time, read_csv
 from ._errors import SeriesFormatError
@@ -51,13 +52,17 @@ def _check_sampled(table: CsvTable, spec: TestSpec, index: int, step: float) -> 
         )
 
 
-def load_series(path) -> Series:
+def load_series(path, exclude: Iterable[str] = ()) -> Series:
     """Read and check a test series.
 
     Parameters
     ----------
     path : str or Path
         The series folder, or its ``series.json``.
+    exclude : iterable of str
+        Ids of tests to leave out: their CSV files are neither read nor checked (a test the
+        analysis refuses, or a recording known to be bad, without editing the manifest). The
+        Series records them in ``left_out``.
 
     Returns
     -------
@@ -73,8 +78,11 @@ def load_series(path) -> Series:
         file, the field, row or column, and what is wrong there.
     """
     manifest = read_manifest(_manifest_path(Path(path)))
+    left_out = _checked_exclusions(manifest, exclude)
     records = []
     for index, spec in enumerate(manifest.specs):
+        if spec.id in left_out:
+            continue
         table = read_csv(csv_path_of(manifest, index))
         step = check_time(table)
         if spec.is_periodic:
@@ -87,4 +95,20 @@ def load_series(path) -> Series:
         table=manifest.table,
         path=manifest.path.parent,
         extra=manifest.extra,
+        left_out=left_out,
     )
+
+
+def _checked_exclusions(manifest, exclude) -> tuple[str, ...]:
+    """The ids to leave out, in manifest order; an id the manifest lacks, or leaving out every
+    test, is an error."""
+    wanted = [exclude] if isinstance(exclude, str) else list(exclude)
+    known = [spec.id for spec in manifest.specs]
+    unknown = [x for x in wanted if x not in known]
+    if unknown:
+        raise SeriesFormatError(manifest.path, "tests", f"no test with id {', '.join(map(repr, unknown))} to leave "
+                                f"out; the manifest's ids are {', '.join(known)}")
+    left_out = tuple(x for x in known if x in wanted)
+    if left_out and len(left_out) == len(known):
+        raise SeriesFormatError(manifest.path, "tests", "every test is left out; nothing remains to read")
+    return left_out

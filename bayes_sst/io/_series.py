@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -96,6 +96,8 @@ class Series:
     table: Mapping[str, Any] = field(default_factory=dict)
     path: Path | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
+    # ids of the manifest's tests left out when it was read (load_series(..., exclude=...))
+    left_out: tuple[str, ...] = ()
 
     @property
     def periodic_tests(self) -> tuple[TestRecord, ...]:
@@ -110,3 +112,13 @@ class Series:
     @property
     def n_samples(self) -> int:
         return sum(t.n_samples for t in self.tests)
+
+    def without(self, test_ids) -> "Series":
+        """This series less the tests with these ids (ids it lacks are ignored); they join
+        ``left_out``."""
+        drop = {test_ids} if isinstance(test_ids, str) else set(test_ids)
+        dropped = tuple(t.id for t in self.tests if t.id in drop)
+        if not dropped:
+            return self
+        return replace(self, tests=tuple(t for t in self.tests if t.id not in drop),
+                       left_out=self.left_out + dropped)

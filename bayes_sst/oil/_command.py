@@ -21,6 +21,8 @@ def add_parser(subparsers):
         "is shown beside it. Prints a table; with --out writes ocrf.json (SI) and ocrf.txt.",
     )
     p.add_argument("series", help="series folder (with series.json)")
+    from bayes_sst.cli import add_exclude_argument
+    add_exclude_argument(p)
     p.add_argument("--out", default=None, help="output folder to create (default: print only)")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.add_argument("--chambers", type=int, choices=(2, 4), default=2,
@@ -52,7 +54,7 @@ def run(args) -> int:
     force = bool(getattr(args, "force", False))
     if out is not None:
         check_run_target(out, overwrite=force)
-    series = load_series(args.series)
+    series = load_series(args.series, exclude=args.exclude_test)
     result = oil_column_resonance(
         series,
         chambers=getattr(args, "chambers", 2),

@@ -30,6 +30,8 @@ def add_parser(subparsers):
     p.add_argument("--seed", type=int, default=0, help="seed of the predictive residual draws")
     p.add_argument("--series", default=None,
                    help="the run's series folder, when it has moved since the fit (default: the recorded one)")
+    from bayes_sst.cli import add_exclude_argument
+    add_exclude_argument(p)
     p.set_defaults(handler=run)
     return p
 
@@ -47,7 +49,7 @@ def run(args) -> int:
     from bayes_sst.report._build import build_report, write_report
 
     started = time.perf_counter()
-    series = load_series(args.series) if getattr(args, "series", None) else None
+    series = load_series(args.series, exclude=args.exclude_test) if getattr(args, "series", None) else None
     report = build_report(run_dir, draws=args.draws, seed=args.seed, series=series)
     write_report(report, out, overwrite=force)
     data = report.data

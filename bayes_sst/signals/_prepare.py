@@ -558,7 +558,8 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
             where,
             f"test '{spec.id}'",
             f"only {n_cycles} steady cycle(s) of {f:g} Hz found after trimming the ramps; "
-            f"at least {MIN_STEADY_CYCLES} are needed",
+            f"at least {MIN_STEADY_CYCLES} are needed (to analyse the other tests, leave this one out: "
+            f"--exclude-test {spec.id} on the command line, load_series(..., exclude=[{spec.id!r}]) in Python)",
         )
     manifest_notes = _check_amplitude(record, window, where) + _clipping_notes(record, where)
     if options.remove_offsets:
