@@ -31,7 +31,8 @@ def add_exclude_argument(parser) -> None:
     """--exclude-test: tests of the series' manifest to leave out (load_series(..., exclude=))."""
     parser.add_argument("--exclude-test", nargs="+", default=(), metavar="TEST_ID",
                         help="leave these tests of the manifest out (their CSV files are not read), e.g. a test "
-                             "the analysis refuses; the run records them")
+                             "the analysis refuses; a fit records them, and report, design and diagnose --run "
+                             "leave a run's own out by themselves (put the option after SERIES)")
 
 
 def _cmd_fit(args) -> int:

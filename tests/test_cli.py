@@ -122,7 +122,7 @@ def test_a_test_the_analysis_refuses_can_be_left_out_and_the_run_remembers_it(tm
 
     import numpy as np
 
-    from bayes_sst.inference._predictive import run_prepared
+    from bayes_sst.inference._predictive import run_prepared, run_series
     from bayes_sst.io import load_series, read_run_tree, write_series
     from bayes_sst.signals._cycles import fundamental_phase
     from bayes_sst.twin import simulate
@@ -155,5 +155,14 @@ def test_a_test_the_analysis_refuses_can_be_left_out_and_the_run_remembers_it(tm
     # the report, diagnosis and design read the run's series back from its folder without it
     prepared = run_prepared(read_run_tree(run))
     assert [t.id for t in prepared] == [t.id for t in made.tests if t.id != spoiled_id]
-    # and a series passed whole is read without it as well
+    # and a series passed whole is prepared without it as well
     assert len(run_prepared(read_run_tree(run), load_series(series))) == len(made.tests) - 1
+    # the test's file is not read back at all: a broken one does not matter, whether the series
+    # comes from the run's record or from --series (report, design, diagnose --run)
+    (series / f"{spoiled_id}.csv").write_text("t,u,F\nbroken\n")
+    tree = read_run_tree(run)
+    assert len(run_prepared(tree)) == len(made.tests) - 1
+    assert spoiled_id not in [t.id for t in run_series(tree, "diagnose", path=series).tests]
+    # leaving a test out of a report without --series is refused: the run's series is its own
+    assert main(["report", str(run), "--out", str(tmp_path / "report"), "--exclude-test", "T01"]) == 2
+    assert "--series" in capsys.readouterr().err and not (tmp_path / "report").exists()

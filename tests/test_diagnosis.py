@@ -1214,11 +1214,13 @@ def _coulomb_reversals(Ke_factor=1.0, seed=3):
 
 
 def test_the_noise_share_of_the_breakaway_statistic_is_what_coulomb_friction_reads():
-    """On an ideal Coulomb record the range statistic d reads below zero (a half window's noise
-    range against a whole one's: -0.03..-0.06 over seeds 0-7), and further with a stiffness
-    error (the mid-stroke window then holds a trend: -0.08..-0.11 at Ke 10 % off), while d - null, its
-    noise share taken from the detrended mid-stroke window with an ideal step added, reads zero
-    within its se (about 0.01) for the exact Ke and for Ke 10 % off either way."""
+    """On an ideal Coulomb record the range statistic d (over the window widened by the rest,
+    here the +-20 ms where u stays within 0.2 % of its extreme) reads below zero (a half window's
+    noise range against a whole one's: -0.03..-0.06 over seeds 0-7; d_fixed the same), and
+    further with a stiffness error (the mid-stroke window then holds a trend: -0.10..-0.13 at Ke
+    10 % off), while d - null, its noise share taken from the detrended mid-stroke window with an
+    ideal step added, reads zero within its se (about 0.01) for the exact Ke and for Ke 10 % off
+    either way."""
     for factor in (1.0, 0.9, 1.1):
         found = _coulomb_reversals(factor)
         d = np.array([x["d"] for x in found])
@@ -1235,7 +1237,8 @@ def _resting_record_reversals(static_ratio, rest_s=0.2, seed=4):
     """_test_reversals on a record whose table rests rest_s at every reversal (longer than the
     fixed window's 2h = 160 ms): a 0.25 Hz cycle of half-cosine strokes of 50 mm between rests;
     while it rests, the friction F - Ke*u ramps from +Fk to -Fs (signs of the new direction),
-    and from the breakaway on it is kinetic again; white noise of 3 % of Fk on F."""
+    and from the breakaway on it is kinetic again; white noise of 3 % of Fk on F and of 60 um
+    on u (one noisy sample of u must not end the rest)."""
     from bayes_sst.diagnosis._breakaway import _test_reversals
 
     fs, f, A, Me, Ke, Fk = 500.0, 0.25, 0.05, 13200.0, 7.2e5, 12500.0
@@ -1254,7 +1257,8 @@ def _resting_record_reversals(static_ratio, rest_s=0.2, seed=4):
     friction = np.where(moving, Fk * sign, sign * (Fk - share * (Fk + static_ratio * Fk)))
     rng = np.random.default_rng(seed)
     F = Me * a + Ke * u + friction + rng.normal(0.0, 0.03 * Fk, t.size)
-    return _test_reversals(u, F, a, f, fs, 0, t.size, {"Me": Me, "Ke": Ke, "Ce": 0.0}, 0.5, Fk)
+    u_recorded = u + rng.normal(0.0, 60e-6, t.size)
+    return _test_reversals(u_recorded, F, a, f, fs, 0, t.size, {"Me": Me, "Ke": Ke, "Ce": 0.0}, 0.5, Fk)
 
 
 def test_the_breakaway_window_widens_over_a_rest_longer_than_itself():
@@ -1307,9 +1311,9 @@ def test_the_resting_reading_selects_a_lift_of_the_resting_reversals_only():
 def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_rests():
     """The twin's Karnopp-like stiction (Fs/Fk = 1.4, Stribeck velocity 0.5 mm/s) at 200 Hz: over
     every reversal the check reads 0.06-0.08 (the fast tests sweep through v = 0 and show no
-    breakaway), at the reversals where the table rests 0.28-0.31 (measured 2026-11-27 on seeds 21,
+    breakaway), at the reversals where the table rests 0.27-0.29 (measured 2026-11-28 on seeds 21,
     31, 32), 0.2 above the sweeping ones, and it selects stiction from there; the clean twin reads
-    within 0.03 of zero at rest and does not select."""
+    within 0.05 of zero at rest (0.029 on 2026-11-28) and does not select."""
     from bayes_sst.diagnosis._breakaway import RESTING_EXCESS
 
     karnopp = _breakaway_of(simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=200.0,
@@ -1320,7 +1324,7 @@ def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_res
     assert karnopp["static_excess"] == resting["resting"]["excess"]
     clean = _breakaway_of(simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=200.0))
     assert not clean["selectable"] and clean["selected_by"] is None
-    assert abs(clean["resting"]["resting"]["excess"]) < 0.03
+    assert abs(clean["resting"]["resting"]["excess"]) < 0.05
     assert clean["resting"]["resting"]["excess"] + 3 * clean["resting"]["resting"]["se"] < RESTING_EXCESS
 
 

@@ -678,6 +678,7 @@ def test_excluded_tests_are_not_read_and_are_recorded(folder):
     (folder / "T02.csv").write_text("t,u,F\n0,1\n")  # a broken file the exclusion must not read
     assert "T02.csv" in error_of(folder)
     series = load_series(folder, exclude=["T02"])
+    assert load_series(folder, exclude="T02").left_out == ("T02",)  # one id as a string
     assert [t.id for t in series.tests] == [t.id for t in full.tests if t.id != "T02"]
     assert series.left_out == ("T02",)
     kept = series.tests[0]

@@ -315,7 +315,8 @@ def decompose_test(
         raise SeriesFormatError(
             where,
             f"test '{spec.id}'",
-            f"steady cycle {cycle} asked for, but {n_cycles} steady cycle(s) of {f:g} Hz were found",
+            f"steady cycle {cycle} asked for, but {n_cycles} steady cycle(s) of {f:g} Hz were found"
+            + (f" (to analyse the other tests, leave this one out: --exclude-test {spec.id})" if n_cycles < 3 else ""),
         )
     m = cycle % n_cycles
     near = float(t[window.start]) + m * period

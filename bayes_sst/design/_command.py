@@ -52,7 +52,8 @@ def run(args) -> int:
 
     from bayes_sst.design._candidates import read_candidates
     from bayes_sst.design._design import design, format_design, parse_target
-    from bayes_sst.io import atomic_output_dir, check_run_target, load_series, read_run_tree, write_json_atomic
+    from bayes_sst.inference._predictive import run_series
+    from bayes_sst.io import atomic_output_dir, check_run_target, read_run_tree, write_json_atomic
 
     started = time.perf_counter()
 
@@ -66,7 +67,10 @@ def run(args) -> int:
     check_run_target(out, overwrite=args.force)
     candidates = read_candidates(args.candidates) if args.candidates else None
     tree = read_run_tree(args.run)
-    series = load_series(args.series, exclude=args.exclude_test) if args.series else None
+    if args.exclude_test and not args.series:
+        raise ValueError("--exclude-test applies to a series given with --series; without one the run's own "
+                         "series is read, less the tests the run left out")
+    series = run_series(tree, "design", path=args.series, exclude=args.exclude_test) if args.series else None
     result = design(
         tree,
         targets=targets,

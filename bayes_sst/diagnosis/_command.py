@@ -42,8 +42,13 @@ def run(args) -> int:
         print(f"[{time.perf_counter() - started:6.1f} s] {message}", file=sys.stderr, flush=True)
 
     check_run_target(args.out, overwrite=args.force)
-    series = load_series(args.series, exclude=args.exclude_test)
     tree = read_run_tree(args.run) if args.run else None
+    if tree is not None:
+        from bayes_sst.inference._predictive import run_series
+
+        series = run_series(tree, "diagnose", path=args.series, exclude=args.exclude_test)
+    else:
+        series = load_series(args.series, exclude=args.exclude_test)
     result = diagnose(series, run_tree=tree, progress=progress)
     write_diagnosis(args.out, result, overwrite=args.force)
     print(result.verdict)

@@ -57,21 +57,28 @@ def run_signal_options(tree) -> SignalOptions:
     return SignalOptions(**recorded)
 
 
-def run_series(tree, command: str = "report"):
-    """The series a run was fitted on, read from the folder the run records; the errors say how
-    to point `bayes-sst COMMAND RUN --series SERIES` at it when that folder is gone."""
+def run_series(tree, command: str = "report", path=None, exclude=()):
+    """The series a run was fitted on, read without the tests the run left out (those the
+    manifest still lists; their files are not read) nor those in `exclude`. From `path`, else
+    from the folder the run records; the errors say how to point `bayes-sst COMMAND RUN --series
+    SERIES` at it when that folder is gone."""
     from pathlib import Path
 
     from bayes_sst.io import load_series
+    from bayes_sst.io._read import manifest_test_ids
 
-    path = tree.attrs.get("series_path", "")
-    if not path:
-        raise ValueError("the run does not record its series folder; pass the series explicitly "
-                         f"(bayes-sst {command} RUN --series SERIES)")
-    if not Path(path).is_dir():
-        raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
-                         f"pass its new location (bayes-sst {command} RUN --series SERIES)")
-    return load_series(path, exclude=run_left_out(tree))
+    if path is None:
+        path = tree.attrs.get("series_path", "")
+        if not path:
+            raise ValueError("the run does not record its series folder; pass the series explicitly "
+                             f"(bayes-sst {command} RUN --series SERIES)")
+        if not Path(path).is_dir():
+            raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
+                             f"pass its new location (bayes-sst {command} RUN --series SERIES)")
+    exclude = [exclude] if isinstance(exclude, str) else list(exclude)
+    listed = set(manifest_test_ids(path))
+    exclude += [x for x in run_left_out(tree) if x in listed and x not in exclude]
+    return load_series(path, exclude=exclude)
 
 
 def run_left_out(tree) -> list[str]:

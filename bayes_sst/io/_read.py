@@ -99,6 +99,11 @@ def load_series(path, exclude: Iterable[str] = ()) -> Series:
     )
 
 
+def manifest_test_ids(path) -> list[str]:
+    """The test ids a series' manifest lists, in its order (no CSV is read)."""
+    return [spec.id for spec in read_manifest(_manifest_path(Path(path))).specs]
+
+
 def _checked_exclusions(manifest, exclude) -> tuple[str, ...]:
     """The ids to leave out, in manifest order; an id the manifest lacks, or leaving out every
     test, is an error."""

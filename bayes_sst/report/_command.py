@@ -38,7 +38,7 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     """Handler of `report`: refuse a taken --out early, build, write atomically, print warnings."""
-    from bayes_sst.io import check_run_target, load_series
+    from bayes_sst.io import check_run_target
 
     run_dir = Path(args.run)
     out = Path(args.out) if args.out else Path("reports") / run_dir.resolve().name
@@ -49,7 +49,15 @@ def run(args) -> int:
     from bayes_sst.report._build import build_report, write_report
 
     started = time.perf_counter()
-    series = load_series(args.series, exclude=args.exclude_test) if getattr(args, "series", None) else None
+    series = None
+    if getattr(args, "series", None):
+        from bayes_sst.inference._predictive import run_series
+        from bayes_sst.io import read_run_tree
+
+        series = run_series(read_run_tree(run_dir), "report", path=args.series, exclude=args.exclude_test)
+    elif args.exclude_test:
+        raise ValueError("--exclude-test applies to a series given with --series; without one the run's own "
+                         "series is read, less the tests the run left out")
     report = build_report(run_dir, draws=args.draws, seed=args.seed, series=series)
     write_report(report, out, overwrite=force)
     data = report.data
