@@ -995,7 +995,7 @@ def diagnose(
                          "(breakaway check); the friction drops to its kinetic level at once, so the force model's "
                          "residual does not shrink, and the static ratio is a lower bound where the peak falls "
                          "between samples (the first independent generator's 1.4, a breakaway under one "
-                         "sample long, read 1.11-1.14 at 200 Hz-1 kHz)")
+                         "sample long, read 1.11-1.15 at 200 Hz-1 kHz)")
     order = {name: k for k, name in enumerate(selected_names)}
     ranking.sort(key=lambda r: (order.get(r["name"], len(order)), -r["score"]))
     notes += _grid_edge_notes(steps, selected_names)
