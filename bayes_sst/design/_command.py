@@ -67,10 +67,8 @@ def run(args) -> int:
     check_run_target(out, overwrite=args.force)
     candidates = read_candidates(args.candidates) if args.candidates else None
     tree = read_run_tree(args.run)
-    if args.exclude_test and not args.series:
-        raise ValueError("--exclude-test applies to a series given with --series; without one the run's own "
-                         "series is read, less the tests the run left out")
-    series = run_series(tree, "design", path=args.series, exclude=args.exclude_test) if args.series else None
+    series = (run_series(tree, "design", path=args.series, exclude=args.exclude_test)
+              if args.series or args.exclude_test else None)
     result = design(
         tree,
         targets=targets,

@@ -60,14 +60,18 @@ def run_signal_options(tree) -> SignalOptions:
 def run_series(tree, command: str = "report", path=None, exclude=()):
     """The series a run was fitted on, read without the tests the run left out (those the
     manifest still lists; their files are not read) nor those in `exclude`. From `path`, else
-    from the folder the run records; the errors say how to point `bayes-sst COMMAND RUN --series
-    SERIES` at it when that folder is gone."""
+    from the folder the run records (and then `exclude` must be empty: the run's series is its
+    own); the errors say how to point `bayes-sst COMMAND RUN --series SERIES` at it when that
+    folder is gone."""
     from pathlib import Path
 
     from bayes_sst.io import load_series
     from bayes_sst.io._read import manifest_test_ids
 
     if path is None:
+        if exclude:
+            raise ValueError("--exclude-test applies to a series given with --series; without one the run's own "
+                             "series is read, less the tests the run left out")
         path = tree.attrs.get("series_path", "")
         if not path:
             raise ValueError("the run does not record its series folder; pass the series explicitly "

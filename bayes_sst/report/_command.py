@@ -50,14 +50,11 @@ def run(args) -> int:
 
     started = time.perf_counter()
     series = None
-    if getattr(args, "series", None):
+    if getattr(args, "series", None) or args.exclude_test:
         from bayes_sst.inference._predictive import run_series
         from bayes_sst.io import read_run_tree
 
         series = run_series(read_run_tree(run_dir), "report", path=args.series, exclude=args.exclude_test)
-    elif args.exclude_test:
-        raise ValueError("--exclude-test applies to a series given with --series; without one the run's own "
-                         "series is read, less the tests the run left out")
     report = build_report(run_dir, draws=args.draws, seed=args.seed, series=series)
     write_report(report, out, overwrite=force)
     data = report.data
