@@ -27,12 +27,21 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _test_ids(text: str) -> list[str]:
+    ids = [x.strip() for x in text.split(",") if x.strip()]
+    if not ids:
+        raise argparse.ArgumentTypeError(f"no test id in {text!r}")
+    return ids
+
+
 def add_exclude_argument(parser) -> None:
-    """--exclude-test: tests of the series' manifest to leave out (load_series(..., exclude=))."""
-    parser.add_argument("--exclude-test", nargs="+", default=(), metavar="TEST_ID",
+    """--exclude-test ID[,ID...] (repeatable): tests of the series' manifest to leave out
+    (load_series(..., exclude=)). One token per use, so that it cannot swallow SERIES."""
+    parser.add_argument("--exclude-test", action="extend", type=_test_ids, default=[], metavar="ID[,ID...]",
                         help="leave these tests of the manifest out (their CSV files are not read), e.g. a test "
-                             "the analysis refuses; a fit records them, and report, design and diagnose --run "
-                             "leave a run's own out by themselves (put the option after SERIES)")
+                             "the analysis refuses; ids separated by commas, or the option repeated. A fit "
+                             "records them, and report, design and diagnose --run leave a run's own out by "
+                             "themselves")
 
 
 def _cmd_fit(args) -> int:

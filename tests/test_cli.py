@@ -166,3 +166,14 @@ def test_a_test_the_analysis_refuses_can_be_left_out_and_the_run_remembers_it(tm
     # leaving a test out of a report without --series is refused: the run's series is its own
     assert main(["report", str(run), "--out", str(tmp_path / "report"), "--exclude-test", "T01"]) == 2
     assert "--series" in capsys.readouterr().err and not (tmp_path / "report").exists()
+
+
+def test_exclude_test_takes_comma_separated_ids_and_repeats_without_swallowing_the_series():
+    from bayes_sst.cli import build_parser
+
+    parser = build_parser()
+    args = parser.parse_args(["fit", "--exclude-test", "T05,T11", "SERIES", "--out", "RUN", "--exclude-test", "T02"])
+    assert args.series == "SERIES" and args.exclude_test == ["T05", "T11", "T02"]
+    assert parser.parse_args(["fit", "SERIES", "--out", "RUN"]).exclude_test == []
+    with pytest.raises(SystemExit):
+        parser.parse_args(["fit", "SERIES", "--out", "RUN", "--exclude-test", ","])
