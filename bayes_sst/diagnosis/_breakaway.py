@@ -31,8 +31,9 @@ the scatter of the per-test means; the resting reading below takes d. Only tests
 recorded acceleration enter: a derived one rounds off the breakaway. Why the rest widens the
 window: a window shorter than the rest holds only part of the resting force's ramp, neither the
 breakaway nor the kinetic level on either side, so its range falls short of 2 Fk. On a fourth
-simulator (Fs/Fk = 1.4) whose table rests 40-150 ms at its slow reversals, those reversals read
--0.5 to -0.9 with the fixed window and 0.3 to 0.7 with the widened one (2026-11-28). The reading
+simulator (Fs/Fk = 1.4) whose table rests up to 160 ms at its slow reversals, tests resting
+over 100 ms read -0.5 to -0.9 with the fixed window and 0.5 to 0.7 with the widened one (500 Hz
+and 1 kHz, 2026-11-28). The reading
 over all reversals keeps the fixed window: widened, it claimed stiction on a clean series of
 that simulator (docs/diagnosis.md).
 
