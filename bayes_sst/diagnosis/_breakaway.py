@@ -155,14 +155,14 @@ def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kine
     band = 2.0 * cutoff / fs
     u_noise = 1.4826 * float(np.median(np.abs(above - np.median(above)))) * np.sqrt(band / (1.0 - band))
     still = max(REST_NOISE_SDS * u_noise, REST_SHARE * 0.5 * float(np.ptp(smooth_u[lo:hi])))
-    reach = int(0.25 * period * fs)
     longest = int(MAX_WINDOW_PERIODS * period * fs)
     reversals = []
     for i in _reversal_indices(u, frequency_hz, fs, lo, hi):
         first, last = i, i
-        while first > max(i - reach, 0) and abs(smooth_u[first - 1] - smooth_u[i]) <= still:
+        # a rest that reaches a quarter period makes a window over `longest`: no need to walk on
+        while first > max(i - quarter, 0) and abs(smooth_u[first - 1] - smooth_u[i]) <= still:
             first -= 1
-        while last < min(i + reach, len(u) - 1) and abs(smooth_u[last + 1] - smooth_u[i]) <= still:
+        while last < min(i + quarter, len(u) - 1) and abs(smooth_u[last + 1] - smooth_u[i]) <= still:
             last += 1
         if i - h < 0 or i + quarter + h + 1 > len(r):
             continue
@@ -186,12 +186,11 @@ def _pooled(per_test: dict[str, list[float]], min_tests: int) -> dict[str, float
     if len(groups) < max(min_tests, 2):
         return None
     means = np.array([g.mean() for g in groups])
-    counts = np.array([len(g) for g in groups], float)
     values = np.concatenate(groups)
-    mean = float(np.sum(counts * means) / counts.sum())
+    mean = float(values.mean())  # the test means weighted by their counts
     se = max(float(np.std(means, ddof=1) / np.sqrt(len(means))), float(np.std(values, ddof=1) / np.sqrt(len(values))))
     return {"excess": mean, "se": se, "z": mean / se if se > 0 else 0.0, "tests": len(groups),
-            "reversals": int(counts.sum())}
+            "reversals": len(values)}
 
 
 def _resting_reading(reversals: dict[str, list[dict[str, float]]]) -> dict[str, Any]:
@@ -246,8 +245,8 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
     # the reading over every reversal keeps its first se (the test means' scatter alone) and its
     # thresholds, so that what it selected before it selects now; _pooled is the resting reading's
     values = np.array(list(per_test.values()))
-    weights = np.array([len(v) for v in reversals.values()], dtype=float)
-    excess = float(np.sum(weights * values) / weights.sum())
+    every_d = [x["d_fixed"] for v in reversals.values() for x in v]
+    excess = float(np.mean(every_d))  # the test means weighted by their counts
     excess_se = float(np.std(values, ddof=1) / np.sqrt(len(values)))
     z = excess / excess_se if excess_se > 0 else 0.0
     every = bool(excess >= BREAKAWAY_EXCESS and z >= BREAKAWAY_Z)
@@ -261,7 +260,7 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
     else:
         selected_by, ratio_excess, ratio_se = None, None, None
     return {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
-            "reversals": int(weights.sum()), "positive_share": float(np.mean(values > 0)),
+            "reversals": len(every_d), "positive_share": float(np.mean(values > 0)),
             "per_test": per_test, "resting": resting, "selectable": selected_by is not None,
             "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
             "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,

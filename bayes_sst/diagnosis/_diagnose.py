@@ -769,7 +769,7 @@ def diagnose(
     started = time.perf_counter()
     timings: dict[str, float] = {}
     if run_tree is not None:
-        from bayes_sst.inference._predictive import run_left_out
+        from bayes_sst.inference._summary import run_left_out
 
         series = series.without(run_left_out(run_tree))
     if len(series.periodic_tests) < MIN_PERIODIC_TESTS:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayes_sst.inference._statistics import COEFFICIENTS, damping_columns
+from bayes_sst.inference._summary import run_left_out
 from bayes_sst.signals import PreparedTest, SignalOptions
 
 
@@ -67,6 +68,7 @@ def run_series(tree, command: str = "report", path=None, exclude=()):
 
     from bayes_sst.io import load_series
     from bayes_sst.io._read import manifest_test_ids
+    from bayes_sst.io._series import as_test_ids
 
     if path is None:
         if exclude:
@@ -79,17 +81,10 @@ def run_series(tree, command: str = "report", path=None, exclude=()):
         if not Path(path).is_dir():
             raise ValueError(f"the series folder this run was fitted on, {path}, is not there any more; "
                              f"pass its new location (bayes-sst {command} RUN --series SERIES)")
-    exclude = [exclude] if isinstance(exclude, str) else list(exclude)
+    exclude = as_test_ids(exclude)
     listed = set(manifest_test_ids(path))
     exclude += [x for x in run_left_out(tree) if x in listed and x not in exclude]
     return load_series(path, exclude=exclude)
-
-
-def run_left_out(tree) -> list[str]:
-    """Ids of the series' tests the run's fit left out (none for runs that predate the record)."""
-    import json
-
-    return list(json.loads(tree.attrs.get("left_out", "") or "[]"))
 
 
 def run_prepared(tree, series=None) -> list[PreparedTest]:

@@ -132,6 +132,11 @@ def short_of_limits(tree) -> str | None:
     return ", ".join(short) or None
 
 
+def run_left_out(tree) -> list[str]:
+    """Ids of the series' tests the run's fit left out (none for runs that predate the record)."""
+    return list(json.loads(tree.attrs.get("left_out", "") or "[]"))
+
+
 def summarize(tree, *, seconds: float | None = None) -> dict:
     """summary.json content: population parameters (SI), convergence checks and warnings.
 
@@ -234,7 +239,7 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     n_steady = int(constant["steady_samples"].values.sum()) if "steady_samples" in constant else None
     summary = {
         "series": tree.attrs.get("series", ""),
-        "left_out": json.loads(tree.attrs.get("left_out", "") or "[]"),
+        "left_out": run_left_out(tree),
         "parameters": parameters,
         "between_test_spread": spread,
         "divergences": divergences,

@@ -8,7 +8,7 @@ from typing import Iterable
 from ._csv import CsvTable, format_number, check_time, read_csv
 from ._errors import SeriesFormatError
 from ._manifest import MANIFEST_NAME, csv_path_of, read_manifest
-from ._series import Series, TestRecord, TestSpec
+from ._series import Series, TestRecord, TestSpec, as_test_ids
 
 # A steady-state cycle is taken after the start-up transient, so fewer cycles than this
 # leave nothing to identify from.
@@ -107,7 +107,7 @@ def manifest_test_ids(path) -> list[str]:
 def _checked_exclusions(manifest, exclude) -> tuple[str, ...]:
     """The ids to leave out, in manifest order; an id the manifest lacks, or leaving out every
     test, is an error."""
-    wanted = [exclude] if isinstance(exclude, str) else list(exclude)
+    wanted = as_test_ids(exclude)
     known = [spec.id for spec in manifest.specs]
     unknown = [x for x in wanted if x not in known]
     if unknown:

@@ -87,6 +87,11 @@ class TestRecord:
         return int(self.t.shape[0])
 
 
+def as_test_ids(test_ids) -> list[str]:
+    """A test id, or an iterable of them, as a list (a lone string is one id, not its letters)."""
+    return [test_ids] if isinstance(test_ids, str) else list(test_ids)
+
+
 @dataclass(frozen=True)
 class Series:
     """A named campaign of tests on one table, with the table's nominal description."""
@@ -116,7 +121,7 @@ class Series:
     def without(self, test_ids) -> "Series":
         """This series less the tests with these ids (ids it lacks are ignored); they join
         ``left_out``."""
-        drop = {test_ids} if isinstance(test_ids, str) else set(test_ids)
+        drop = set(as_test_ids(test_ids))
         dropped = tuple(t.id for t in self.tests if t.id in drop)
         if not dropped:
             return self
