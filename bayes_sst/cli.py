@@ -34,6 +34,18 @@ def _test_ids(text: str) -> list[str]:
     return ids
 
 
+SHAREABLE = ("Me", "Ke", "Ce", "Fmu")
+
+
+def _shared_coefficients(text: str) -> list[str]:
+    """--shared NAME[,NAME...]: one token per use (nargs='+' swallowed a SERIES written after it)."""
+    names = [x.strip() for x in text.split(",") if x.strip()]
+    unknown = [x for x in names if x not in SHAREABLE]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one or more of {', '.join(SHAREABLE)}, separated by commas")
+    return names
+
+
 def add_exclude_argument(parser) -> None:
     """--exclude-test ID[,ID...] (repeatable): tests of the series' manifest to leave out
     (load_series(..., exclude=)). One token per use, so that it cannot swallow SERIES."""
@@ -64,7 +76,7 @@ def _cmd_fit(args) -> int:
         options = replace(options, reversal_speed=args.reversal_speed)
     priors = make_priors(args.prior, series.table)
     if args.shared:
-        priors = replace(priors, shared=tuple(args.shared))
+        priors = replace(priors, shared=tuple(dict.fromkeys(args.shared)))
     result = fit(
         series,
         chains=args.chains,
@@ -137,9 +149,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--prior", choices=("generic", "physics"), default="generic",
                    help="generic weak priors, or centred by the series' table description")
-    p.add_argument("--shared", nargs="+", choices=("Me", "Ke", "Ce", "Fmu"), default=(), metavar="COEFFICIENT",
-                   help="coefficients the same in every test (no between-test variation), e.g. "
-                        "--shared Me when the moving mass cannot change between tests")
+    p.add_argument("--shared", action="extend", type=_shared_coefficients, default=[], metavar="NAME[,NAME...]",
+                   help="coefficients (Me, Ke, Ce, Fmu) the same in every test (no between-test variation), "
+                        "e.g. --shared Me when the moving mass cannot change between tests; names separated "
+                        "by commas, or the option repeated")
     p.add_argument("--cutoff-multiple", type=float, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
     p.add_argument("--reversal-band", type=float, default=None,

@@ -177,3 +177,15 @@ def test_exclude_test_takes_comma_separated_ids_and_repeats_without_swallowing_t
     assert parser.parse_args(["fit", "SERIES", "--out", "RUN"]).exclude_test == []
     with pytest.raises(SystemExit):
         parser.parse_args(["fit", "SERIES", "--out", "RUN", "--exclude-test", ","])
+
+
+def test_shared_takes_comma_separated_names_and_repeats_without_swallowing_the_series(capsys):
+    from bayes_sst.cli import build_parser
+
+    parser = build_parser()
+    args = parser.parse_args(["fit", "--shared", "Me,Ke", "SERIES", "--out", "RUN", "--shared", "Fmu"])
+    assert args.series == "SERIES" and args.shared == ["Me", "Ke", "Fmu"]
+    assert parser.parse_args(["fit", "SERIES", "--out", "RUN"]).shared == []
+    with pytest.raises(SystemExit):
+        parser.parse_args(["fit", "SERIES", "--out", "RUN", "--shared", "Me,mass"])
+    assert "'Me,mass'" in capsys.readouterr().err

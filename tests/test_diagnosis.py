@@ -402,6 +402,33 @@ def test_between_test_share_is_the_excess_scatter_of_the_per_test_coefficients_e
     assert _between_test_share(before, before, ("Ce", "Fmu"), positions) == 0.0
 
 
+def test_text_output_of_a_breakaway_finding_gives_the_resting_misfit_and_locates_the_force_residual():
+    """A stiction found by the breakaway check: diagnosis.txt gives the stick-slip misfit where
+    the table rests (the json's figures) beside the force residual's own, and whether `where`
+    locates a negligible excess is judged on the force residual (here at its floor), not on the
+    resting misfit (here far above its own)."""
+    from bayes_sst.diagnosis._output import format_diagnosis
+
+    data = {"series": "x", "verdict": "verdict: stiction (static_ratio = 1.3)", "selected": ["stiction"],
+            "noise_floor": 861.0, "rms_before": 1503.0, "rms_after": 159.0, "shrink": 1.0,
+            "shrink_basis": "breakaway", "notes": [],
+            "where": [{"region": "large |v| (> 2/3 of peak)", "share": 3.5, "sample_share": 0.6, "excess_ratio": 0.1}],
+            "breakaway_check": {"excess": -0.2, "excess_se": 0.1, "z": -2.0, "tests": 20, "reversals": 240,
+                                "thresholds": {"excess": 0.15, "z": 5.0}, "used": True,
+                                "misfit": {"force_rms": 211.0, "force_noise_floor": 209.0}},
+            "ranking": [{"name": "stiction", "score": 0.0, "score_se": 0.0, "rule": "breakaway",
+                         "params": {"static_ratio": {"mean": 1.3, "sd": 0.01}}}],
+            "base_shift": {"Me": 0.0, "Ke": 0.0, "Ce": 0.0, "Fmu": 0.0, "alpha": 0.0}}
+    lines = format_diagnosis(data).splitlines()
+    assert lines[3].startswith("where the table rests at its reversals: noise floor 0.861 kN, stick-slip misfit "
+                               "before 1.503 kN, after 0.159 kN (force residual 0.211 kN against its floor 0.209 kN)")
+    assert "100 % of the excess removed where the table rests" in lines[3]
+    assert any(line.strip().startswith("nowhere:") for line in lines)
+    # the same figures read as a force residual (basis "residual") are a clear excess
+    assert not any(line.strip().startswith("nowhere:")
+                   for line in format_diagnosis(dict(data, shrink_basis="residual")).splitlines())
+
+
 def test_text_output_says_what_the_shrink_is_a_share_of_and_survives_a_missing_shift():
     from bayes_sst.diagnosis._output import format_diagnosis
 
@@ -1277,6 +1304,45 @@ def test_the_breakaway_window_widens_over_a_rest_longer_than_itself():
     assert abs(np.mean([x["d"] - x["null"] for x in clean])) < 0.05
 
 
+def test_stick_slip_misfit_is_the_force_beyond_the_limit_at_rest_and_the_kinetic_step_while_sliding():
+    """stick_slip_misfit on a hand-made window: sliding at +Fk (old direction), a rest whose
+    holding force ramps to -1.4 Fk, sliding at -Fk; the misfit is r - clip(r, -Fs, Fs) at rest,
+    r -+ Fk while sliding."""
+    from bayes_sst.diagnosis._breakaway import stick_slip_misfit
+
+    Fk = 1000.0
+    r = np.array([1000.0, 1010.0, 990.0, 800.0, 0.0, -800.0, -1200.0, -1400.0, -1000.0, -990.0, -1010.0])
+    rest = np.zeros(r.size, bool)
+    rest[3:8] = True
+    window = {"r": r, "rest": rest, "sliding": np.where(np.arange(r.size) < 3, Fk, -Fk), "kinetic": Fk,
+              "noise": np.zeros(r.size)}
+    np.testing.assert_allclose(stick_slip_misfit(window, 1.0), [0, 10, -10, 0, 0, 0, -200, -400, 0, 10, -10])
+    np.testing.assert_allclose(stick_slip_misfit(window, 1.2), [0, 10, -10, 0, 0, 0, 0, -200, 0, 10, -10])
+    np.testing.assert_allclose(stick_slip_misfit(window, 1.4), [0, 10, -10, 0, 0, 0, 0, 0, 0, 10, -10])
+
+
+def test_the_stick_slip_figures_read_the_resting_force_beyond_the_kinetic_limit():
+    """_stick_slip_figures over the 200 ms rests of _resting_record_reversals: the resting force
+    ramps from -Fk to -1.4 Fk over the last 1/6 of the rest (16.7 samples at 500 Hz), so the
+    misfit with the kinetic limit is 0.4 Fk/sqrt(3) RMS over those samples and zero over the
+    rest of the samples the check counts as resting (which include the slow ends of the strokes,
+    where the table slides at Fk); with the limit at 1.4 Fk only the noise's exceedances at the
+    breakaway remain; the noise floor reads the 3 % of Fk (375 N) that was added; a Coulomb
+    table's rests read under their floor."""
+    from bayes_sst.diagnosis._breakaway import _stick_slip_figures
+
+    reversals = _resting_record_reversals(1.4)
+    sticking = _stick_slip_figures([x["window"] for x in reversals], 1.4)
+    ramp_samples = len(reversals) * 0.2 / 6.0 * 500.0
+    expected = 0.4 * 12500.0 / math.sqrt(3.0) * math.sqrt(ramp_samples / sticking["rest_samples"])
+    assert sticking["rms_before"] == pytest.approx(expected, rel=0.1)
+    assert sticking["noise_floor"] == pytest.approx(375.0, rel=0.1)
+    assert sticking["rms_after"] < 0.25 * sticking["noise_floor"]
+    assert sticking["window_rms_before"] > sticking["window_rms_after"] > 0.5 * sticking["noise_floor"]
+    clean = _stick_slip_figures([x["window"] for x in _resting_record_reversals(1.0)], 1.0)
+    assert clean["rms_before"] < clean["noise_floor"]
+
+
 def test_the_resting_reading_selects_a_lift_of_the_resting_reversals_only():
     """_resting_reading on hand-made reversals (four tests, twelve reversals each): a lift of 0.2
     at the resting reversals alone selects; the same lift at the sweeping ones as well (an
@@ -1332,7 +1398,7 @@ def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_res
 def test_stiction_without_a_stribeck_velocity_is_selected_by_the_breakaway_check_and_ranked_first():
     """diagnose() on the Karnopp-like twin of the test above: nothing else is selected, so the
     check's finding stands; stiction leads the ranking with the check's static ratio (within 20 %
-    of 1.4) and the residual's shrink is reported as not applicable (basis "breakaway")."""
+    of 1.4); the shrink is that of stick-slip friction where the table rests (basis "breakaway")."""
     series = simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=1000.0,
                       truth_overrides={"static_ratio": 1.4, "stribeck_velocity": 0.0005})
     data = diagnose(series).to_json()
@@ -1340,3 +1406,7 @@ def test_stiction_without_a_stribeck_velocity_is_selected_by_the_breakaway_check
     assert data["ranking"][0]["name"] == "stiction" and data["ranking"][0]["rule"] == "breakaway"
     assert data["ranking"][0]["params"]["static_ratio"]["mean"] == pytest.approx(1.4, rel=0.2)
     assert data["shrink_basis"] == "breakaway" and data["breakaway_check"]["used"]
+    # where the table rests, stick-slip friction with the static limit read takes the resting
+    # force that the kinetic limit leaves (measured: 947 -> 90 N against a floor of 525 N)
+    assert data["rms_before"] > 1.5 * data["noise_floor"] > 3 * data["rms_after"]
+    assert data["shrink"] >= 0.7 and "at rest at its reversals" in data["located_region"]["region"]

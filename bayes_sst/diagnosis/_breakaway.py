@@ -63,6 +63,12 @@ at their extremes), so d - null reads zero for either sign of the error (a revie
 only; a recorder's anti-alias overshoot, a delay, a specimen or a mismatch that grows with speed
 lift the sweeping ones as much or more. Measured 2026-11-27 night with the base fit's
 coefficients: docs/diagnosis.md (the breakaway check) has the table.
+
+Where the check selects, how far stiction shrinks the misfit is read in the windows that
+selected, since the force model's samples leave the reversals out: stick-slip friction holds
+f = clip(r, -Fs, Fs) while the table rests and +-Fk while it slides (stick_slip_misfit), and
+the RMS of r - f over the resting samples with Fs = Fk (before) and with the ratio read (after)
+is set against the mid-stroke noise (_stick_slip_figures; the check's "misfit").
 """
 
 from __future__ import annotations
@@ -113,18 +119,37 @@ def _reversal_indices(u: np.ndarray, frequency_hz: float, fs: float, lo: int, hi
     return i
 
 
-def _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic) -> tuple[float, float, float]:
+def _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic, rest) -> tuple[float, float, float, dict]:
     """d, null and inertia (the module docstring's) of the reversal window r[start:start+n]
-    against the mid-stroke window a quarter period later."""
+    against the mid-stroke window a quarter period later, and what stick_slip_misfit needs:
+    the window's r, its rest (the samples of [first, last] inside it), the kinetic friction of
+    the motion either side of the rest (old direction before, new after) and the detrended
+    mid-stroke r (the noise)."""
     around, mid = r[start:start + n], r[start + quarter:start + quarter + n]
     offsets = np.arange(n) - n // 2
     direction = 1.0 if np.mean(v[start + n // 2:start + n]) >= 0 else -1.0
     step = np.where(offsets < 0, -direction, direction) * kinetic
     slope, intercept = np.polyfit(offsets, mid, 1)
     flat = mid - (slope * offsets + intercept)
+    first, last = rest
+    at = np.arange(start, start + n)
+    sliding = np.where(at < first, -direction, direction) * kinetic
+    window = {"r": around, "rest": (at >= first) & (at <= last), "sliding": sliding, "kinetic": kinetic,
+              "noise": flat}
     return (float(np.ptp(around) - np.ptp(mid)) / kinetic - 2.0,
             float(np.ptp(flat + step) - np.ptp(mid)) / kinetic - 2.0,
-            Me * float(np.max(np.abs(smooth_a[start:start + n]))) / kinetic)
+            Me * float(np.max(np.abs(smooth_a[start:start + n]))) / kinetic,
+            window)
+
+
+def stick_slip_misfit(window: dict, static_ratio: float) -> np.ndarray:
+    """r - f over a reversal window, f the stick-slip friction with static limit
+    Fs = static_ratio*Fk: while the table rests (the window's rest) it holds whatever force
+    turns it, up to the limit, f = clip(r, -Fs, Fs); while it slides, f = +-Fk in the direction
+    of motion. static_ratio = 1 is Coulomb friction with sticking, the base model's."""
+    limit = static_ratio * window["kinetic"]
+    friction = np.where(window["rest"], np.clip(window["r"], -limit, limit), window["sliding"])
+    return window["r"] - friction
 
 
 def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kinetic) -> list[dict[str, float]]:
@@ -166,14 +191,15 @@ def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kine
             last += 1
         if i - h < 0 or i + quarter + h + 1 > len(r):
             continue
-        d_fixed, _, _ = _window_reading(r, v, smooth_a, i - h, 2 * h + 1, quarter, Me, kinetic)
+        d_fixed, _, _, window_fixed = _window_reading(r, v, smooth_a, i - h, 2 * h + 1, quarter, Me, kinetic,
+                                                      (first, last))
         start, n = first - h, last - first + 2 * h + 1
         # a widened window that leaves the record or passes MAX_WINDOW_PERIODS: the reversal
         # enters neither group of the resting reading (NaN inertia)
-        d, null, inertia = ((np.nan,) * 3 if start < 0 or start + quarter + n > len(r) or n > longest
-                            else _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic))
+        d, null, inertia, window = ((np.nan,) * 3 + (None,) if start < 0 or start + quarter + n > len(r) or n > longest
+                                    else _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic, (first, last)))
         reversals.append({"d": d, "null": null, "inertia": inertia, "rest_s": (last - first) / fs,
-                          "d_fixed": d_fixed})
+                          "d_fixed": d_fixed, "window": window, "window_fixed": window_fixed})
     return reversals
 
 
@@ -210,6 +236,28 @@ def _resting_reading(reversals: dict[str, list[dict[str, float]]]) -> dict[str, 
                    selectable=bool(resting["excess"] >= RESTING_EXCESS and resting["z"] >= RESTING_Z
                                    and lead >= RESTING_LEAD and lead >= RESTING_LEAD_Z * lead_se))
     return reading
+
+
+def _stick_slip_figures(windows: Sequence[dict], static_ratio: float) -> dict[str, float]:
+    """The misfit of stick-slip friction (stick_slip_misfit) over the reversal windows that
+    selected stiction: RMS over the samples where the table rests, with Coulomb friction
+    (rms_before, limit Fk) and with the static limit read (rms_after), where the two models
+    differ; the same over the whole windows (window_rms_*), whose sliding samples both models
+    treat alike; and the noise floor, the RMS of the detrended mid-stroke windows, where the
+    table slides at its kinetic friction and r is that friction plus noise. At rest the model
+    takes any holding force up to its limit, so only the force beyond the limit is misfit: a
+    Coulomb twin's rests read 385-553 N against floors of 507-525 N (200 Hz, 1 kHz)."""
+    def rms(parts):
+        x = np.concatenate(parts)
+        return float(np.sqrt(np.mean(x * x))) if len(x) else float("nan")
+    before = [stick_slip_misfit(w, 1.0) for w in windows]
+    after = [stick_slip_misfit(w, static_ratio) for w in windows]
+    return {"rms_before": rms([e[w["rest"]] for e, w in zip(before, windows)]),
+            "rms_after": rms([e[w["rest"]] for e, w in zip(after, windows)]),
+            "noise_floor": rms([w["noise"] for w in windows]),
+            "window_rms_before": rms(before), "window_rms_after": rms(after),
+            "rest_samples": int(sum(int(w["rest"].sum()) for w in windows)), "windows": len(windows),
+            "static_ratio": static_ratio}
 
 
 def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) -> dict[str, Any] | None:
@@ -255,14 +303,18 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
     # reversal is diluted by the sweeping ones), else the mean over all
     if resting["selectable"]:
         selected_by, ratio_excess, ratio_se = "resting_reversals", resting["resting"]["excess"], resting["resting"]["se"]
+        windows = [x["window"] for v in reversals.values() for x in v
+                   if x["window"] is not None and x["inertia"] < RESTING_INERTIA]
     elif every:
         selected_by, ratio_excess, ratio_se = "all_reversals", excess, excess_se
+        windows = [x["window_fixed"] for v in reversals.values() for x in v]
     else:
-        selected_by, ratio_excess, ratio_se = None, None, None
+        selected_by, ratio_excess, ratio_se, windows = None, None, None, []
     return {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
             "reversals": len(every_d), "positive_share": float(np.mean(values > 0)),
             "per_test": per_test, "resting": resting, "selectable": selected_by is not None,
             "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
+            "misfit": _stick_slip_figures(windows, 1.0 + ratio_excess) if windows else None,
             "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,
                            "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,
                            "resting_z": RESTING_Z, "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}

@@ -171,8 +171,9 @@ def shrink_words(basis: str, shrink: float) -> str:
     return {"residual": f"{100 * shrink:.0f} % of the excess removed",
             "between_tests": f"{100 * shrink:.0f} % of the test-to-test scatter of the per-test coefficients "
                              "explained (the residual is not what a between-test effect changes)",
-            "breakaway": "found by the breakaway check at the reversals, where the force model's samples are "
-                         "left out: its residual is unchanged"}[basis]
+            "breakaway": f"{100 * shrink:.0f} % of the excess removed where the table rests at its reversals "
+                         "(stick-slip friction, kinetic limit against the static one read; the force model's "
+                         "samples leave the reversals out, so its own residual is unchanged)"}[basis]
 
 
 @dataclass
@@ -206,7 +207,8 @@ class Diagnosis:
     # "residual": shrink is the share of the residual's excess over the floor removed;
     # "between_tests": the share of the per-test coefficients' test-to-test variance explained
     # (_between_test_share), for effects that act between tests only (drift); "breakaway": the
-    # only finding is the breakaway check's stiction, which the residual does not see (shrink 0)
+    # only finding is the breakaway check's stiction, which the force residual does not see: the
+    # figures are the stick-slip misfit where the table rests (_breakaway._stick_slip_figures)
     shrink_basis: str = "residual"
     # what the signal treatment set aside (a recorded acceleration it refused, ...)
     notes: list[str] = field(default_factory=list)
@@ -221,7 +223,12 @@ class Diagnosis:
 
     @property
     def verdict(self) -> str:
-        what = "residual RMS" if self.rms_unit == "N" else "command-to-motion response misfit RMS"
+        if self.rms_unit != "N":
+            what = "command-to-motion response misfit RMS"
+        elif self.shrink_basis == "breakaway":
+            what = "stick-slip misfit RMS at rest"
+        else:
+            what = "residual RMS"
         if not self.selected:
             if _clear_excess(self.rms_before, self.noise_floor):
                 # a clear excess that no candidate explains: something outside the library (a
@@ -990,12 +997,28 @@ def diagnose(
             stiction["stribeck_fit"] = stiction["params"]
             stiction["params"] = {"static_ratio": {"mean": ratio, "sd": breakaway["static_excess_se"]}}
             stiction["rule"] = "breakaway"
-            shrink, shrink_basis = 0.0, "breakaway"
+            shrink_basis = "breakaway"
+            # the force model's samples leave the reversals out, so its residual cannot show the
+            # finding; the figures are the stick-slip misfit where the table rests (_breakaway)
+            misfit = breakaway["misfit"]
+            if misfit is not None and misfit["rest_samples"] > 0:
+                # the force residual's own figures, which `where` locates, stay beside
+                misfit["force_rms"], misfit["force_noise_floor"] = rms_before, floor
+                floor, rms_before, rms_after = misfit["noise_floor"], misfit["rms_before"], misfit["rms_after"]
+                shrink = misfit["shrink"] = _shrink(rms_before, rms_after, floor)
+                region = {"region": f"the table at rest at its reversals ({misfit['rest_samples']} samples in "
+                                    f"{misfit['windows']} reversal windows)",
+                          "rms_before": rms_before, "rms_after": rms_after}
+            else:  # no resting sample in the windows that selected: nothing to compare
+                shrink = 0.0
             notes.append("stiction is read from the peak force the resting table holds before each breakaway "
                          "(breakaway check); the friction drops to its kinetic level at once, so the force model's "
-                         "residual does not shrink, and the static ratio is a lower bound where the peak falls "
+                         "residual does not change, and the static ratio is a lower bound where the peak falls "
                          "between samples (the first independent generator's 1.4, a breakaway under one "
-                         "sample long, read 1.11-1.15 at 200 Hz-1 kHz)")
+                         "sample long, read 1.11-1.15 at 200 Hz-1 kHz). The residual figures are those of "
+                         "stick-slip friction where the table rests at its reversals, with the kinetic limit "
+                         "(before) and the static one read (after): there it holds any force up to its limit, "
+                         "so only the force beyond the limit is misfit")
     order = {name: k for k, name in enumerate(selected_names)}
     ranking.sort(key=lambda r: (order.get(r["name"], len(order)), -r["score"]))
     notes += _grid_edge_notes(steps, selected_names)

@@ -58,11 +58,22 @@ def format_diagnosis(data: dict) -> str:
     else:  # the oil column's command-to-motion misfit, dimensionless
         amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
                    f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
+    misfit = (data.get("breakaway_check") or {}).get("misfit") or {}
+    at_rest = data.get("shrink_basis") == "breakaway" and "force_rms" in misfit
+    if at_rest:
+        amounts = (f"where the table rests at its reversals: noise floor {data['noise_floor'] / 1e3:.3f} kN, stick-slip "
+                   f"misfit before {data['rms_before'] / 1e3:.3f} kN, after {data['rms_after'] / 1e3:.3f} kN (force "
+                   f"residual {misfit['force_rms'] / 1e3:.3f} kN against its floor {misfit['force_noise_floor'] / 1e3:.3f} kN)")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
              f"{amounts}, {shrink_words(data.get('shrink_basis', 'residual'), data['shrink'])}",
              "", "where the base model misses (share of the excess over the noise floor):"]
-    excess = data["rms_before"] ** 2 - data["noise_floor"] ** 2
-    if excess < NEGLIGIBLE_EXCESS * data["noise_floor"] ** 2:
+    # `where` locates the force residual; a breakaway finding's figures above are its own
+    if at_rest:
+        rms, floor = misfit["force_rms"], misfit["force_noise_floor"]
+    else:
+        rms, floor = data["rms_before"], data["noise_floor"]
+    excess = rms ** 2 - floor ** 2
+    if excess < NEGLIGIBLE_EXCESS * floor ** 2:
         lines.append(f"  nowhere: the residual is within {100 * NEGLIGIBLE_EXCESS:.0f} % (mean square) of the noise "
                      "floor, so the shares below are of a negligible excess")
     for w in data["where"][:6]:
