@@ -766,7 +766,9 @@ def test_diagnose_command_finds_a_withheld_channel_delay(tmp_path, capsys):
     assert main(["diagnose", str(tmp_path / "series"), "--out", str(out)]) == 0
     assert "channel_delay" in capsys.readouterr().out
     data = json.loads((out / "diagnosis.json").read_text())
-    assert (out / "diagnosis.html").read_text().startswith("<!doctype html>")
+    page = (out / "diagnosis.html").read_text()
+    assert page.startswith("<!doctype html>")
+    assert "holds through its reversals" not in page  # that figure is a breakaway finding's only
     assert set(data) >= {"selected", "ranking", "where", "noise_floor", "rms_before", "rms_after", "shrink",
                          "base_shift"}
     assert data["selected"][0] == "channel_delay"
@@ -1401,7 +1403,11 @@ def test_stiction_without_a_stribeck_velocity_is_selected_by_the_breakaway_check
     of 1.4); the shrink is that of stick-slip friction where the table rests (basis "breakaway")."""
     series = simulate("sst-paper", seed=21, spread=0.02, sample_rate_hz=1000.0,
                       truth_overrides={"static_ratio": 1.4, "stribeck_velocity": 0.0005})
-    data = diagnose(series).to_json()
+    from bayes_sst.diagnosis._output import figures
+
+    diagnosis = diagnose(series)
+    data = diagnosis.to_json()
+    json.dumps(data)  # the windows behind the page's figure stay out of the json
     assert data["selected"] == ["stiction"]
     assert data["ranking"][0]["name"] == "stiction" and data["ranking"][0]["rule"] == "breakaway"
     assert data["ranking"][0]["params"]["static_ratio"]["mean"] == pytest.approx(1.4, rel=0.2)
@@ -1410,3 +1416,7 @@ def test_stiction_without_a_stribeck_velocity_is_selected_by_the_breakaway_check
     # force that the kinetic limit leaves (measured: 947 -> 90 N against a floor of 525 N)
     assert data["rms_before"] > 1.5 * data["noise_floor"] > 3 * data["rms_after"]
     assert data["shrink"] >= 0.7 and "at rest at its reversals" in data["located_region"]["region"]
+    # the page shows the force held through the windows that selected, one per window
+    windows = diagnosis.figures["breakaway_windows"]
+    assert len(windows) == data["breakaway_check"]["misfit"]["windows"] > 10
+    assert any(caption.startswith("Force the table holds through its reversals") for caption, _ in figures(diagnosis))

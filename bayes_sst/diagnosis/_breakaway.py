@@ -198,6 +198,9 @@ def _test_reversals(u, F, a, frequency_hz, fs, lo, hi, coefficients, alpha, kine
         # enters neither group of the resting reading (NaN inertia)
         d, null, inertia, window = ((np.nan,) * 3 + (None,) if start < 0 or start + quarter + n > len(r) or n > longest
                                     else _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic, (first, last)))
+        for w in (window, window_fixed):
+            if w is not None:
+                w["dt"] = 1.0 / fs
         reversals.append({"d": d, "null": null, "inertia": inertia, "rest_s": (last - first) / fs,
                           "d_fixed": d_fixed, "window": window, "window_fixed": window_fixed})
     return reversals
@@ -315,6 +318,9 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
             "per_test": per_test, "resting": resting, "selectable": selected_by is not None,
             "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
             "misfit": _stick_slip_figures(windows, 1.0 + ratio_excess) if windows else None,
+            # the windows themselves, for the diagnosis page's figure (diagnose() takes them out
+            # before the figures go to diagnosis.json)
+            "_windows": windows,
             "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,
                            "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,
                            "resting_z": RESTING_Z, "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}

@@ -760,7 +760,10 @@ def breakaway_reading(series: Series, signals: SignalOptions = DIAGNOSIS_SIGNALS
     """The breakaway check (bayes_sst.diagnosis._breakaway) on `series` with the base model that
     diagnose() fits first, without the rest of the diagnosis: for its tests and benchmarks."""
     tests = effect_data(series, signals)
-    return breakaway_check(series, tests, fit_base(Scorer(tests, _scale(series, tests))))
+    check = breakaway_check(series, tests, fit_base(Scorer(tests, _scale(series, tests))))
+    if check is not None:
+        check.pop("_windows")  # the page figure's arrays, as diagnose() takes them out
+    return check
 
 
 def diagnose(
@@ -981,6 +984,7 @@ def diagnose(
     t0 = time.perf_counter()
     breakaway = breakaway_check(series, tests, base)
     timings["breakaway"] = time.perf_counter() - t0
+    breakaway_windows = breakaway.pop("_windows") if breakaway is not None else []
     if breakaway is not None:
         # another effect's reversal dynamics (a delayed force, a specimen ringing after each
         # reversal) read as a breakaway excess too (0.1-1.8 of Fk, _breakaway), so the check
@@ -1047,7 +1051,8 @@ def diagnose(
                   "derived_amplitude_z": DERIVED_AMPLITUDE_Z,
                   "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,
                   "tests": [t.id for t in tests]},
-        figures={"tests": tests, "base": base, "final": final, "floors": floors, "views": side_figures},
+        figures={"tests": tests, "base": base, "final": final, "floors": floors, "views": side_figures,
+                 "breakaway_windows": breakaway_windows if shrink_basis == "breakaway" else []},
         rms_unit=rms_unit,
         shrink_basis=shrink_basis,
         notes=notes,

@@ -184,6 +184,27 @@ def figures(diagnosis) -> list[tuple[str, str]]:
                         f"view, where stiction is scored: {_REVERSAL}; its own base model)", _png(fig)))
             plt.close(fig)
 
+    windows = (figs or {}).get("breakaway_windows") or []
+    if windows:
+        ratio = data["breakaway_check"]["misfit"]["static_ratio"]
+        fig, ax = plt.subplots(figsize=(6, 3))
+        for w in windows:
+            # time from the end of the rest (the breakaway), force in kinetic frictions with the
+            # sign of the new direction of motion: about -1 before the reversal, +1 after it
+            direction = np.sign(w["sliding"][-1])
+            end = int(np.nonzero(w["rest"])[0][-1])
+            t_ms = (np.arange(len(w["r"])) - end) * w["dt"] * 1e3
+            ax.plot(t_ms, direction * w["r"] / w["kinetic"], "-", color="C0", lw=0.5, alpha=0.3)
+        for level, label in ((1.0, "kinetic"), (ratio, f"static read, {ratio:.2f}")):
+            ax.axhline(level, color="C3", lw=1, ls="--")
+            ax.annotate(label, (ax.get_xlim()[0], level), va="bottom", fontsize=8, color="C3")
+        ax.set_xlabel("time from the end of the rest (ms)")
+        ax.set_ylabel("friction / kinetic friction")
+        out.append((f"Force the table holds through its reversals ({len(windows)} windows that selected stiction; "
+                    "r = F - Me*a - Ke*u - Ce*|v|^alpha*sign(v), in kinetic frictions, signed by the new direction "
+                    "of motion): a stiction rises above 1 before it breaks away", _png(fig)))
+        plt.close(fig)
+
     fig, ax = plt.subplots(figsize=(6, 3))
     where = data["where"][:8]
     ax.barh([w["region"] for w in where], [100 * w["share"] for w in where], color="C2")
