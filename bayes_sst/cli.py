@@ -27,8 +27,13 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
+def _comma_list(text: str) -> list[str]:
+    """The non-empty items of a comma-separated option value, stripped."""
+    return [x.strip() for x in text.split(",") if x.strip()]
+
+
 def _test_ids(text: str) -> list[str]:
-    ids = [x.strip() for x in text.split(",") if x.strip()]
+    ids = _comma_list(text)
     if not ids:
         raise argparse.ArgumentTypeError(f"no test id in {text!r}")
     return ids
@@ -39,7 +44,7 @@ SHAREABLE = ("Me", "Ke", "Ce", "Fmu")
 
 def _shared_coefficients(text: str) -> list[str]:
     """--shared NAME[,NAME...]: one token per use (nargs='+' swallowed a SERIES written after it)."""
-    names = [x.strip() for x in text.split(",") if x.strip()]
+    names = _comma_list(text)
     unknown = [x for x in names if x not in SHAREABLE]
     if not names or unknown:
         raise argparse.ArgumentTypeError(f"{text!r}: give one or more of {', '.join(SHAREABLE)}, separated by commas")

@@ -168,24 +168,22 @@ def test_a_test_the_analysis_refuses_can_be_left_out_and_the_run_remembers_it(tm
     assert "--series" in capsys.readouterr().err and not (tmp_path / "report").exists()
 
 
-def test_exclude_test_takes_comma_separated_ids_and_repeats_without_swallowing_the_series():
+@pytest.mark.parametrize("option, first, second, expected, spoiled, named", [
+    ("--exclude-test", "T05,T11", "T02", ["T05", "T11", "T02"], ",", None),
+    ("--shared", "Me,Ke", "Fmu", ["Me", "Ke", "Fmu"], "Me,mass", "'Me,mass'"),
+])
+def test_list_options_take_comma_separated_items_and_repeat_without_swallowing_the_series(
+        capsys, option, first, second, expected, spoiled, named):
+    """--exclude-test ID[,ID...] and --shared NAME[,NAME...]: one token per use (nargs='+'
+    swallowed a SERIES written after it), repeatable; a spoiled value is refused, by name."""
     from bayes_sst.cli import build_parser
 
     parser = build_parser()
-    args = parser.parse_args(["fit", "--exclude-test", "T05,T11", "SERIES", "--out", "RUN", "--exclude-test", "T02"])
-    assert args.series == "SERIES" and args.exclude_test == ["T05", "T11", "T02"]
-    assert parser.parse_args(["fit", "SERIES", "--out", "RUN"]).exclude_test == []
+    attribute = option.lstrip("-").replace("-", "_")
+    args = parser.parse_args(["fit", option, first, "SERIES", "--out", "RUN", option, second])
+    assert args.series == "SERIES" and getattr(args, attribute) == expected
+    assert getattr(parser.parse_args(["fit", "SERIES", "--out", "RUN"]), attribute) == []
     with pytest.raises(SystemExit):
-        parser.parse_args(["fit", "SERIES", "--out", "RUN", "--exclude-test", ","])
-
-
-def test_shared_takes_comma_separated_names_and_repeats_without_swallowing_the_series(capsys):
-    from bayes_sst.cli import build_parser
-
-    parser = build_parser()
-    args = parser.parse_args(["fit", "--shared", "Me,Ke", "SERIES", "--out", "RUN", "--shared", "Fmu"])
-    assert args.series == "SERIES" and args.shared == ["Me", "Ke", "Fmu"]
-    assert parser.parse_args(["fit", "SERIES", "--out", "RUN"]).shared == []
-    with pytest.raises(SystemExit):
-        parser.parse_args(["fit", "SERIES", "--out", "RUN", "--shared", "Me,mass"])
-    assert "'Me,mass'" in capsys.readouterr().err
+        parser.parse_args(["fit", "SERIES", "--out", "RUN", option, spoiled])
+    if named:
+        assert named in capsys.readouterr().err

@@ -52,18 +52,18 @@ def selection_rules(data: dict) -> dict[str, str]:
 
 def format_diagnosis(data: dict) -> str:
     """A short human-readable account: verdict, where, ranking (kN in the text, SI in the json)."""
-    if data.get("rms_unit", "N") == "N":
-        amounts = (f"noise floor {data['noise_floor'] / 1e3:.3f} kN, residual RMS before {data['rms_before'] / 1e3:.3f} kN, "
-                   f"after {data['rms_after'] / 1e3:.3f} kN")
-    else:  # the oil column's command-to-motion misfit, dimensionless
-        amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
-                   f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     misfit = (data.get("breakaway_check") or {}).get("misfit") or {}
     at_rest = data.get("shrink_basis") == "breakaway" and "force_rms" in misfit
     if at_rest:
         amounts = (f"where the table rests at its reversals: noise floor {data['noise_floor'] / 1e3:.3f} kN, stick-slip "
                    f"misfit before {data['rms_before'] / 1e3:.3f} kN, after {data['rms_after'] / 1e3:.3f} kN (force "
                    f"residual {misfit['force_rms'] / 1e3:.3f} kN against its floor {misfit['force_noise_floor'] / 1e3:.3f} kN)")
+    elif data.get("rms_unit", "N") == "N":
+        amounts = (f"noise floor {data['noise_floor'] / 1e3:.3f} kN, residual RMS before {data['rms_before'] / 1e3:.3f} kN, "
+                   f"after {data['rms_after'] / 1e3:.3f} kN")
+    else:  # the oil column's command-to-motion misfit, dimensionless
+        amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
+                   f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
              f"{amounts}, {shrink_words(data.get('shrink_basis', 'residual'), data['shrink'])}",
              "", "where the base model misses (share of the excess over the noise floor):"]
