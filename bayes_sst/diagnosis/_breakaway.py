@@ -263,9 +263,12 @@ def _stick_slip_figures(windows: Sequence[dict], static_ratio: float) -> dict[st
             "static_ratio": static_ratio}
 
 
-def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) -> dict[str, Any] | None:
+def breakaway_check(series: Series, tests: Sequence[EffectData],
+                    fit: ModelFit) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
     """The module docstring's excess over the tests with a recorded acceleration, and its
-    resting reversals' reading, or None where fewer than MIN_TESTS have one. selectable: either
+    resting reversals' reading (None where fewer than MIN_TESTS have one), with the reversal
+    windows of the reading that selected (empty where none did: the diagnosis page's figure
+    takes them; they stay out of the reading, which goes to diagnosis.json). selectable: either
     reading selects stiction; static_excess (Fs/Fk - 1) and its se come from the one that did."""
     names = list(fit.names)
     reversals = {}
@@ -291,7 +294,7 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
         if found:
             reversals[test.id] = found
     if len(reversals) < MIN_TESTS:
-        return None
+        return None, []
     per_test = {k: float(np.mean([x["d_fixed"] for x in v])) for k, v in reversals.items()}
     # the reading over every reversal keeps its first se (the test means' scatter alone) and its
     # thresholds, so that what it selected before it selects now; _pooled is the resting reading's
@@ -313,14 +316,12 @@ def breakaway_check(series: Series, tests: Sequence[EffectData], fit: ModelFit) 
         windows = [x["window_fixed"] for v in reversals.values() for x in v]
     else:
         selected_by, ratio_excess, ratio_se, windows = None, None, None, []
-    return {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
-            "reversals": len(every_d), "positive_share": float(np.mean(values > 0)),
-            "per_test": per_test, "resting": resting, "selectable": selected_by is not None,
-            "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
-            "misfit": _stick_slip_figures(windows, 1.0 + ratio_excess) if windows else None,
-            # the windows themselves, for the diagnosis page's figure (diagnose() takes them out
-            # before the figures go to diagnosis.json)
-            "_windows": windows,
-            "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,
-                           "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,
-                           "resting_z": RESTING_Z, "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}
+    reading = {"excess": excess, "excess_se": excess_se, "z": z, "tests": len(values),
+               "reversals": len(every_d), "positive_share": float(np.mean(values > 0)),
+               "per_test": per_test, "resting": resting, "selectable": selected_by is not None,
+               "selected_by": selected_by, "static_excess": ratio_excess, "static_excess_se": ratio_se,
+               "misfit": _stick_slip_figures(windows, 1.0 + ratio_excess) if windows else None,
+               "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "resting_inertia": RESTING_INERTIA,
+                              "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,
+                              "resting_z": RESTING_Z, "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}
+    return reading, windows

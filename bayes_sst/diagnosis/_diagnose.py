@@ -760,9 +760,7 @@ def breakaway_reading(series: Series, signals: SignalOptions = DIAGNOSIS_SIGNALS
     """The breakaway check (bayes_sst.diagnosis._breakaway) on `series` with the base model that
     diagnose() fits first, without the rest of the diagnosis: for its tests and benchmarks."""
     tests = effect_data(series, signals)
-    check = breakaway_check(series, tests, fit_base(Scorer(tests, _scale(series, tests))))
-    if check is not None:
-        check.pop("_windows")  # the page figure's arrays, as diagnose() takes them out
+    check, _ = breakaway_check(series, tests, fit_base(Scorer(tests, _scale(series, tests))))
     return check
 
 
@@ -982,9 +980,8 @@ def diagnose(
                                                         oil["rms_after"], oil["shrink"])
                 rms_unit = "response"
     t0 = time.perf_counter()
-    breakaway = breakaway_check(series, tests, base)
+    breakaway, breakaway_windows = breakaway_check(series, tests, base)
     timings["breakaway"] = time.perf_counter() - t0
-    breakaway_windows = breakaway.pop("_windows") if breakaway is not None else []
     if breakaway is not None:
         # another effect's reversal dynamics (a delayed force, a specimen ringing after each
         # reversal) read as a breakaway excess too (0.1-1.8 of Fk, _breakaway), so the check
