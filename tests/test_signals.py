@@ -847,6 +847,29 @@ def test_a_working_but_noisy_accelerometer_on_a_slow_small_test_is_kept():
     assert not refused.acceleration_measured and len(refused.notes) == 1
 
 
+def test_an_accelerometer_that_also_records_ringing_above_the_band_is_kept():
+    """A deck ringing at 53 Hz (+-30 m/s^2, a servo loop limit-cycling) shows in the recorded a
+    above the analysis band, where the check reads the accelerometer's noise: on a slow, small
+    sine (0.3 Hz, 10 mm: 0.036 m/s^2 of acceleration) that reading alone puts the expected
+    ratio near 2, yet the in-band RMS ratio is 1 and the correlation 0.999, so the channel is
+    kept (a lower bound of e/1.5 refused it); the same channel at half its scale is still
+    refused (ratio 0.5, under 1/ACCELERATION_RMS_FACTOR whatever the noise reading)."""
+    from bayes_sst.signals._checks import accelerometer_disagreement
+
+    record, truth = _synthetic_test(0, 0.3, 0.01, seed=7)
+    rng = np.random.default_rng(7)
+    ringing = 30.0 * np.sin(2 * np.pi * 53.0 * truth["t"] + 0.3)
+    a = truth["a"] + ringing + 0.02 * rng.standard_normal(truth["t"].shape)
+    prep = prepare_test(TestRecord(record.spec, dict(record.columns, a=a)))
+    assert prep.acceleration_measured and prep.notes == ()
+    fs = 1.0 / (record.t[1] - record.t[0])
+    u_f = zero_phase_lowpass(record.u, prep.cutoff_hz, fs)
+    assert accelerometer_disagreement(a, u_f, prep.cutoff_hz, fs, prep.window) is None
+    problem = accelerometer_disagreement(0.5 * a, u_f, prep.cutoff_hz, fs, prep.window)
+    assert problem is not None and "RMS ratio 0.5" in problem
+    assert float(problem.split("allows ")[1].split(",")[0]) > 1.5  # the noise reading's expected ratio
+
+
 def test_complementary_velocity_keeps_the_corner_of_a_breakaway():
     """A table at rest that breaks away at 3 m/s^2: a 10 ms Gaussian kernel reads the corner
     0.4*a*s = 12 mm/s too fast (G preserves lines, not corners); with the kernel's band
