@@ -486,6 +486,13 @@ def test_stiction_is_found_on_the_reversal_view_and_its_ratio_recovered():
     assert top["name"] == "stiction" and top.get("view") == "reversal"
     assert top["params"]["static_ratio"]["mean"] == pytest.approx(1.4, rel=0.1)
     assert top["params"]["stribeck_velocity"]["mean"] == pytest.approx(0.02, rel=0.5)
+    # a grid value is known at best to within its node's spacing, however peaked the profile
+    from bayes_sst.effects import effect_by_name
+
+    grid = np.asarray(effect_by_name("stiction").grid["stribeck_velocity"])
+    velocity = top["params"]["stribeck_velocity"]
+    others = np.abs(grid - velocity["mean"])
+    assert velocity["sd"] >= 0.999 * others[others > 1e-12].min() / np.sqrt(12)
     # the ratio's sd includes how the reading moves over the Stribeck velocity's grid posterior
     ratio = top["params"]["static_ratio"]
     assert ratio["sd"] >= ratio["sd_given_grid"] > 0.0
