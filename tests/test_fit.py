@@ -389,6 +389,22 @@ def test_a_loosely_determined_parameter_is_named():
     assert weak["Fmu"] == pytest.approx(0.16) and weak["alpha"] == 0.18
 
 
+def test_a_between_test_spread_beyond_a_tables_repeatability_is_named():
+    """wide_spreads names the coefficients whose between-test sd exceeds 5 % (the 6.5 Hz
+    specimen series read Me 6.9, Ke 4.2, Ce 7.6, Fmu 6.6 %; clean series 0.9-4.0 %), and leaves
+    an Me spread beyond the implausible 10 % to that note."""
+    from bayes_sst.inference._summary import wide_spreads
+
+    spread = {name: {"relative_sd_mean": value} for name, value in
+              {"Me": 0.069, "Ke": 0.042, "Ce": 0.076, "Fmu": 0.066}.items()}
+    assert wide_spreads(spread) == {"Me": 0.069, "Ce": 0.076, "Fmu": 0.066}
+    spread["Me"]["relative_sd_mean"] = 0.21
+    assert list(wide_spreads(spread)) == ["Ce", "Fmu"]
+    clean = {name: {"relative_sd_mean": value} for name, value in
+             {"Me": 0.021, "Ke": 0.040, "Ce": 0.020, "Fmu": 0.025}.items()}
+    assert wide_spreads(clean) == {}
+
+
 def test_a_start_the_numpy_potential_cannot_evaluate_falls_back_to_numpyros_initialisation(monkeypatch):
     """fit hands NUTS a start with a potential computed in numpy; where that potential is not
     finite the start is left to NumPyro's own initialisation, and the fit still recovers the
