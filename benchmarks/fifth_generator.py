@@ -233,7 +233,8 @@ def make_series(seed, out_dir, effect=None, size=None, truth_path=None, name=Non
                 "Fk": Fk_i.tolist(), "Fk_at_deck_load": (mu_i * (F_hd + m_deck * G) * fall).tolist(),
                 "payload": pay.tolist(), "order": order.tolist()}
     if dry_run:  # the draws only (same random stream), for replaying a series' per-test truth
-        return {"Me": Me, "Ke": Ke, "Ce": Ce, "alpha": alpha, "Fmu": Fk0, "per_test": per_test}
+        return {"Me": Me, "Ke": Ke, "Ce": Ce, "alpha": alpha, "Fmu": Fk0, "per_test": per_test,
+                "fs": fs, "has_a": has_a, "has_v": has_v, "effect": eff}
 
     # ---- commands on the fine grid (common length, padded with rest)
     t_pre = 0.5

@@ -11,7 +11,10 @@ instant breakaway; lugre: benchmarks/lugre_generator.py, clean series (LuGre fri
 pre-sliding, a small Stribeck peak and real sticking, an orifice-law servo loop); valve:
 benchmarks/valve_generator.py, clean series (servo-valve and oil-column hydraulics under a
 three-variable controller, Coulomb friction with a Stribeck peak of up to 5 % and exact
-sticking, an anti-alias filter, hum and a 16-bit converter). Series
+sticking, an anti-alias filter, hum and a 16-bit converter); fifth: benchmarks/fifth_generator.py,
+clean series (servo-valve, oil column and three-variable loop integrated at 0.1-0.2 ms, Coulomb
+friction with a Stribeck peak of up to 3 % and exact sticking, AR(1) force noise, hum,
+quantised u, 256-1024 Hz, no recorder filter). Series
 missing from --dir are generated first (20-40 s each). --without-acceleration removes the
 `a` and `v` columns first (a lab without an accelerometer). The LuGre generator scales a
 payload test's friction by (1 + m_payload g/(Me g)), without the struts' hold-down force that
@@ -54,7 +57,7 @@ def main():
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--dir", default="/tmp/bayes_sst_independent")
     parser.add_argument("--out", default=None)
-    parser.add_argument("--generator", choices=("first", "lugre", "valve"), default="first")
+    parser.add_argument("--generator", choices=("first", "lugre", "valve", "fifth"), default="first")
     parser.add_argument("--signal", action="append", default=[], metavar="NAME=VALUE",
                         help="override a SignalOptions field, e.g. reversal_band=0.1")
     parser.add_argument("--without-acceleration", action="store_true",
@@ -74,6 +77,11 @@ def main():
 
         def make_series(seed, folder):
             generate_valve(seed, folder)
+    elif args.generator == "fifth":
+        from fifth_generator import make_series as make_fifth
+
+        def make_series(seed, folder):
+            make_fifth(seed, folder, truth_path=os.path.join(folder, "truth.json"))
     else:
         from independent_generator import make_series
 
@@ -105,8 +113,8 @@ def main():
                          "covered": bool(p["q05"] <= truth[name] <= p["q95"]), "z": (p["mean"] - truth[name]) / p["sd"]}
         if "payload_friction_gain" in summary:
             g = summary["payload_friction_gain"]
-            # the valve generator scales friction by the package's own normal load: kappa = 1
-            gain = 1.0 if args.generator == "valve" else gain_truth(series, truth)
+            # the valve and fifth generators scale friction by the package's own normal load: kappa = 1
+            gain = 1.0 if args.generator in ("valve", "fifth") else gain_truth(series, truth)
             row["payload_friction_gain"] = {"mean": g["mean"], "sd": g["sd"], "q05": g["q05"], "q95": g["q95"],
                                             "truth": gain}
         rows.append(row)
