@@ -120,6 +120,13 @@ def _key(setting: Mapping[str, float]) -> tuple:
     return tuple(sorted(setting.items()))
 
 
+def _nearest_step(values: np.ndarray, best: float) -> float:
+    """The distance from `best` to the nearest other value tried (0 where there is none): the
+    resolution, step^2/12 in variance, of a grid parameter whose posterior sits on one value."""
+    others = np.abs(values - best)
+    return float(np.min(others[others > 0])) if np.any(others > 0) else 0.0
+
+
 def _local_posterior(effect: Effect, stencil, best_setting) -> _LocalPosterior:
     """Weights exp(log m - max) over the stencil's settings and its centre (uniform prior: a
     stencil steps evenly, in the parameter or its log). Each parameter's sd adds the stencil's
@@ -133,9 +140,7 @@ def _local_posterior(effect: Effect, stencil, best_setting) -> _LocalPosterior:
     for key in effect.grid:
         values = np.array([st[key] for st, _, _ in entries])
         mean = float(weights @ values)
-        others = np.abs(values - best_setting[key])
-        step = float(np.min(others[others > 0])) if np.any(others > 0) else 0.0
-        var = float(weights @ (values - mean) ** 2) + step ** 2 / 12.0
+        var = float(weights @ (values - mean) ** 2) + _nearest_step(values, best_setting[key]) ** 2 / 12.0
         edge = np.isclose(values, values.min()) | np.isclose(values, values.max())
         moments[key] = (mean, float(np.sqrt(var)), float(weights[edge].sum()) if np.ptp(values) > 0 else 0.0)
     return _LocalPosterior(weights, [(st, c) for st, _, c in entries], moments)
@@ -229,8 +234,7 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit) -> EffectSco
         # local stencil's own sd does): without it the stiction's Stribeck velocity, which has
         # no refinement, read 4.4721 +- 1e-7 mm/s, a node of its 13-point grid, against a true
         # 3.5 mm/s (a fifth simulator, static ratio 1.3)
-        others = np.abs(values - best_setting[key])
-        step = float(np.min(others[others > 0])) if np.any(others > 0) else 0.0
+        step = _nearest_step(values, best_setting[key])
         sd = float(np.sqrt(max(weights @ (values - mean) ** 2, 0.0) + step ** 2 / 12.0))
         if local is not None:
             # the coarse profile's spread counts only where the local stencil's edge still
