@@ -286,14 +286,15 @@ def test_verdict_says_when_the_residual_had_no_visible_excess(clean_diagnosis):
 
 def test_amplitude_z_of_a_scored_effect_is_its_coefficient_over_its_sd(clean_diagnosis):
     """EffectScore.amplitude_z from the extended fit's own coefficient and posterior sd (drift,
-    one linear coefficient; the reported sd may be the larger sandwich sd); an effect without
-    one (the delay) passes the gate and reports None."""
+    one linear coefficient; the reported sd may be the larger sandwich sd); the delay, which has
+    none, stands as far from its null setting (0) as its read value is in its own sds."""
     steps = clean_diagnosis.to_json()["steps"][0]["candidates"]
     by_name = {c["name"]: c for c in steps}
     drift = by_name["drift"]["params"]["drift"]
     assert by_name["drift"]["amplitude_z"] == pytest.approx(abs(drift["mean"]) / drift["sd_posterior"], rel=1e-6)
     assert drift["sd"] >= drift["sd_posterior"]
-    assert by_name["channel_delay"]["amplitude_z"] is None
+    delay = by_name["channel_delay"]["params"]["delay"]
+    assert by_name["channel_delay"]["amplitude_z"] == pytest.approx(abs(delay["mean"]) / delay["sd"], rel=1e-9)
     json.dumps(clean_diagnosis.to_json(), allow_nan=False)  # what diagnosis.json needs
 
 

@@ -82,7 +82,8 @@ IMPROVED_NATS = 1.0
 Z_LOSS = 5.0
 NULL_NATS_PER_TEST = 0.5
 MAX_SELECTED = 3
-# an effect's linear coefficient must stand this many sds away from zero (EffectScore.amplitude_z).
+# an effect's linear coefficient must stand this many sds away from zero (EffectScore.amplitude_z;
+# the delay, which has none, its read value from 0: Effect.null_setting).
 # Why: the elpd can rise on a few tests that a flexible term happens to fit when the data carry
 # a misfit the library does not describe; on clean series of an independently written
 # generator, while its sensor offsets still reached the diagnosis, a specimen of 1.2 +- 1.7 t

@@ -56,6 +56,10 @@ class Effect:
     # column, no grid, whose leave-one-test-out score is weak by construction because the base
     # model's per-test coefficients absorb most of it (drift's trend, the cubic's A^2*u part)
     z_selectable: bool = False
+    # for an effect without linear coefficients: the grid setting that is the base model itself
+    # (a delay of 0); its distance from the read setting, in the setting's sds, is the effect's
+    # amplitude z (bayes_sst.diagnosis MIN_AMPLITUDE_Z), as a coefficient's is for the others
+    null_setting: Mapping[str, float] = field(default_factory=dict)
 
     def settings(self) -> list[dict[str, float]]:
         """Every combination of grid values ([{}] when the effect has no grid parameter)."""
@@ -360,6 +364,7 @@ class ChannelDelay(Effect):
     parameters: tuple[Parameter, ...] = (Parameter("delay", "s", "uniform -10 to 40 ms"),)
     grid: Mapping[str, tuple[float, ...]] = field(default_factory=lambda: {"delay": tuple(np.round(
         np.concatenate([np.arange(-0.01, 0.01201, 0.00025), np.arange(0.0125, 0.04001, 0.0005)]), 6))})
+    null_setting: Mapping[str, float] = field(default_factory=lambda: {"delay": 0.0})
 
     def _grid_index(self, delay: float) -> tuple[np.ndarray, int]:
         values = np.asarray(self.grid["delay"])
