@@ -207,3 +207,36 @@ def test_the_twin_accelerometer_drift_is_read_on_its_slow_tests_and_nothing_else
         assert 0.01 < np.std(other.columns["a"] - one.columns["a"]) < 0.06
     assert all(p.acceleration_noise_excess is None for p in prepare_series(plain))
     assert all(p.acceleration_noise_excess is not None for p in prepare_series(drifting))
+
+
+def test_motion_beyond_the_harmonics_is_not_read_as_accelerometer_drift():
+    """A deck whose motion wanders from cycle to cycle (a broadband in-band part beside the
+    sine, as a servo loop's own response and sticking give) has that part in the displacement
+    as well as in a: its acceleration, recorded with white noise only, must keep the white
+    treatment. The displacement's second derivative is a covariate of the excess fit for that
+    reason; with the force, the displacement and sign(v) alone the wander read as a drift."""
+    fs, f, n_cycles, sigma = 500.0, 0.4, 12, 0.02
+    rng = np.random.default_rng(5)
+    t = (np.arange(int(n_cycles * fs / f)) + 0.3) / fs
+    omega = 2 * np.pi * f
+    amplitude = 0.05
+    u = amplitude * np.sin(omega * t)
+    v = amplitude * omega * np.cos(omega * t)
+    a = -(omega**2) * u
+    # 400 components at random frequencies up to 1.6 Hz, 0.4 mm of displacement in all
+    frequency = rng.uniform(0.05, 1.6, 400)
+    phase = rng.uniform(0, 2 * np.pi, 400)
+    size = 4e-4 / np.sqrt(200) * np.ones(400)
+    for fk, pk, ak in zip(frequency, phase, size):
+        wk = 2 * np.pi * fk
+        u = u + ak * np.sin(wk * t + pk)
+        v = v + ak * wk * np.cos(wk * t + pk)
+        a = a - ak * wk**2 * np.sin(wk * t + pk)
+    force = 13200.0 * a + 720e3 * u + (29.6e3 * np.abs(v) ** 0.5 + 12.5e3) * np.sign(v)
+    spec = TestSpec(id="W01", file="W01.csv", kind="sine", frequency_hz=f, amplitude_m=amplitude, order=1)
+    columns = {"t": t, "u": u + 1e-5 * rng.standard_normal(t.size),
+               "F": force + 50.0 * rng.standard_normal(t.size),
+               "a": a + sigma * rng.standard_normal(t.size)}
+    prepared = prepare_test(TestRecord(spec, columns), SignalOptions(steady_tolerance=0.05))
+    assert prepared.acceleration_noise_sd == pytest.approx(sigma, rel=0.1)
+    assert prepared.acceleration_noise_excess is None

@@ -55,6 +55,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("reversal_band_without_accelerometer", None)
     recorded.setdefault("check_accelerometer", False)
     recorded.setdefault("reversal_speed", 0.0)
+    recorded.setdefault("free_constant", False)
     return SignalOptions(**recorded)
 
 

@@ -13,6 +13,7 @@ from bayes_sst.signals._prepare import (
     prepare_test,
     recorded_velocity_is_quieter,
     reversal_weight,
+    project_out,
     without_steady_offsets,
 )
 
@@ -38,6 +39,7 @@ __all__ = [
     "second_derivative",
     "steady_cycles",
     "time_derivative",
+    "project_out",
     "without_steady_offsets",
     "zero_phase_lowpass",
 ]
