@@ -590,7 +590,7 @@ def test_unfiltered_friction_regressor_would_bias_the_fit(clean):
     for record, _ in clean:
         prep = prepare_test(record)
         damping = prep.regressor(lambda v: np.abs(v) ** TRUE["alpha"] * np.sign(v))
-        design = np.column_stack([prep.a, prep.u, damping, np.sign(prep.v)])
+        design = np.column_stack([prep.a, prep.u, damping, prep.without_constant(np.sign(prep.v))])
         rows.append(design[prep.keep])
         rhs.append(prep.F[prep.keep])
     coef, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
@@ -763,13 +763,24 @@ def test_prepare_test_removes_constant_sensor_offsets():
     record = TestRecord(record.spec, dict(record.columns, v=truth["v"]))
     shifted = TestRecord(record.spec, {k: v + {"F": 3000.0, "u": 0.003, "a": 0.05, "v": 0.002}.get(k, 0.0)
                                        for k, v in record.columns.items()})
-    base, moved = prepare_test(record), prepare_test(shifted)
-    for name, scale in (("F", 3000.0), ("u", 0.003), ("a", 0.05), ("v", 0.002)):
-        assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-3 * scale, name
-    assert np.array_equal(moved.keep, base.keep)
-    # each test's free constant takes up a constant force as well; with neither, the offset stays
+    # the offsets' removal alone, then with each test's free constant, which takes up what is
+    # left of a constant in F, u and a (not of one in v, which is not a column)
+    alone = SignalOptions(free_constant=False)
+    for options in (alone, SignalOptions()):
+        base, moved = prepare_test(record, options), prepare_test(shifted, options)
+        for name, scale in (("F", 3000.0), ("u", 0.003), ("a", 0.05), ("v", 0.002)):
+            assert np.max(np.abs(getattr(moved, name) - getattr(base, name))) < 1e-3 * scale, name
+        assert np.array_equal(moved.keep, base.keep)
+    base = prepare_test(record, alone)
     kept = prepare_test(shifted, SignalOptions(remove_offsets=False, free_constant=False))
     assert np.max(np.abs(kept.F - base.F)) > 0.5 * 3000.0
+    # (v's offset would move the reversal band and weight, which v sets)
+    shifted_Fua = TestRecord(record.spec, {k: v + {"F": 3000.0, "u": 0.003, "a": 0.05}.get(k, 0.0)
+                                           for k, v in record.columns.items()})
+    projected = prepare_test(shifted_Fua, SignalOptions(remove_offsets=False))
+    reference = prepare_test(record, SignalOptions(remove_offsets=False))
+    for name, scale in (("F", 3000.0), ("u", 0.003), ("a", 0.05)):
+        assert np.max(np.abs(getattr(projected, name) - getattr(reference, name))) < 1e-3 * scale, name
 
 
 def _lopsided_test(f, amp, second, seed):
@@ -819,12 +830,16 @@ def test_each_test_has_a_free_constant():
         return np.linalg.lstsq(X, y, rcond=None)[0], np.sqrt(np.mean((y - X @ truth) ** 2))
 
     # exact signals (the recorded v feeds the regressors): 0.13 N of misfit is left
-    centred, misfit = least_squares(SignalOptions())
-    np.testing.assert_allclose(centred / truth, 1.0, atol=1e-3)
+    with_constant, misfit = least_squares(SignalOptions())
+    np.testing.assert_allclose(with_constant / truth, 1.0, atol=1e-3)
     assert misfit < 5.0
-    uncentred, old_misfit = least_squares(SignalOptions(free_constant=False))
+    without, old_misfit = least_squares(SignalOptions(free_constant=False))
     assert old_misfit > 1000.0
-    assert np.max(np.abs(uncentred / truth - 1.0)) > 0.05
+    assert np.max(np.abs(without / truth - 1.0)) > 0.05
+    # the accelerometer-noise draws are treated as a is: no part along the constant's shape
+    prep = replace(prepare_test(record), acceleration_noise_sd=0.05)
+    draws = prep.acceleration_noise(3)
+    assert np.abs(draws[:, prep.keep] @ prep.constant_shape[prep.keep]).max() < 1e-9 * np.abs(draws).sum()
 
 
 SST_TABLE = {"deck_mass_kg": 12000.0, "strut": {"p0_pa": 6.9e6, "area_m2": 0.0314, "h_m": 1.2}}

@@ -558,7 +558,7 @@ def _entry(score: EffectScore) -> dict[str, Any]:
             "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound,
             "grid_edge": dict(score.grid_edge), "sign_p": sign_test(score.diff),
             "z_loss": loss_scaled_z(score.diff), "z_loss_without_best": loss_scaled_z_without_best(score.diff),
-            # None for an effect without a linear coefficient (the delay): JSON has no infinity
+            # None for an effect with neither a linear coefficient nor a null setting: JSON has no infinity
             "amplitude_z": score.amplitude_z if math.isfinite(score.amplitude_z) else None,
             "test_elpd_diff": [float(x) for x in score.diff]}
 
@@ -585,7 +585,8 @@ def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False,
     the round's highest score; derived_acceleration: some tests have no accelerometer, so an
     effect that reads the acceleration needs DERIVED_AMPLITUDE_Z."""
     least_z = DERIVED_AMPLITUDE_Z if derived_acceleration and s.effect.reads_acceleration else MIN_AMPLITUDE_Z
-    if s.at_bound or s.amplitude_z < least_z or entry.get("rms_ratio", 1.0) > MAX_RMS_RISE:
+    # written so that a nan amplitude (a profile of non-finite scores) fails the gate
+    if s.at_bound or not s.amplitude_z >= least_z or entry.get("rms_ratio", 1.0) > MAX_RMS_RISE:
         return None
     if s.score >= MIN_SCORE:
         if s.score >= Z_SELECT * s.score_se:

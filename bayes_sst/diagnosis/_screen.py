@@ -42,7 +42,9 @@ class EffectScore:
     # refinement) whose best coarse value is the first or last of the grid: the truth may lie
     # beyond the searched range ({name: 'lower' | 'upper'})
     grid_edge: dict = field(default_factory=dict)
-    amplitude_z: float = float("inf")  # largest |coefficient|/sd of the effect's linear terms
+    # largest |coefficient|/sd of the effect's linear terms; without any, the read setting's
+    # distance from the effect's null_setting in its own sds (the delay from 0)
+    amplitude_z: float = float("inf")
 
     @property
     def z(self) -> float:

@@ -121,7 +121,8 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
         {"F": (("test", "sample"), _padded([t.F for t in prepared]))},
         coords={"test": test_ids},
     )
-    observed["F"].attrs["meaning"] = "force after the zero-phase low-pass, at the kept (decimated) samples, N"
+    observed["F"].attrs["meaning"] = ("force after the reversal weight and the zero-phase low-pass, at the kept "
+                                      "(decimated) samples, less its test's free constant (project_out), N")
     constant = xr.Dataset(
         {
             "t": (("test", "sample"), _padded([t.t for t in prepared])),

@@ -41,7 +41,10 @@ def run_signal_options(tree) -> SignalOptions:
     re-prepared without it; one from before the separate band for tests without an
     accelerometer (no "reversal_band_without_accelerometer") used its reversal_band for all,
     one from before the accelerometer check (no "check_accelerometer") used every recorded a,
-    and one from before the band's speed floor (no "reversal_speed") had none.
+    one from before the band's speed floor (no "reversal_speed") had none, and one from before
+    the accelerometer-drift estimate (no "coloured_accelerometer_noise"), its displacement
+    covariate (no "drift_displacement_covariate") or each test's free constant (no
+    "free_constant") was fitted without it.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -55,6 +58,8 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("reversal_band_without_accelerometer", None)
     recorded.setdefault("check_accelerometer", False)
     recorded.setdefault("reversal_speed", 0.0)
+    recorded.setdefault("coloured_accelerometer_noise", False)
+    recorded.setdefault("drift_displacement_covariate", False)
     recorded.setdefault("free_constant", False)
     return SignalOptions(**recorded)
 

@@ -123,7 +123,8 @@ def coloured_noise_excess(x, period_samples: float, cutoff_hz: float, sample_rat
     k*f <= fc, each c(t) a quadratic in time to take up a slow drift of the motion's amplitude
     and phase), is noise, but for what the motion itself does beyond its harmonics: the
     covariates (a sequence of arrays, or a function giving one, called only when some bin can
-    be read; for the accelerometer, the low-passed force and displacement, and the sampled
+    be read; for the accelerometer, the low-passed force and displacement, the displacement's
+    second derivative (the motion the displacement transducer records too), and the sampled
     sign(v), which aliases as its friction step does: sampled without an anti-alias filter, a
     step folds its harmonics above the Nyquist frequency back into the band, at frequencies
     that are not the test's harmonics) are columns of the fit too. Its periodogram I_k = |rfft(r)|^2/N divided

@@ -45,7 +45,9 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    generator (Coulomb friction) coverage stayed within one series of what it was.
 4. Steady state. Only the longest run of whole cycles whose amplitude sits on the plateau
    enters; ramp-in and ramp-out cycles are trimmed. The means of F, u, a (and a measured v)
-   over those cycles are subtracted first (without_steady_offsets): sensor zero offsets.
+   over those cycles are subtracted first (without_steady_offsets): sensor zero offsets. What
+   is left of a constant force (the dissipative force need not average to zero) is each test's
+   free constant, projected out of the force and every regressor last (project_out).
 5. Accelerometer noise. Within the steady window the measured acceleration is replaced by its
    cycle-synchronous average (signals.periodic_component): the motion repeats from cycle to
    cycle, the accelerometer's noise does not. Noise in a regressor biases its coefficient
@@ -131,6 +133,8 @@ class SignalOptions:
         noise adds to them (inference.lagged_moments, errors in variables).
     coloured_accelerometer_noise : estimate, as well, the measured acceleration's in-band
         noise beyond its white level (a drifting accelerometer; signals.coloured_noise_excess).
+    drift_displacement_covariate : the displacement's second derivative is one of that
+        estimate's covariates (_drift_of_accelerometer).
     """
 
     cutoff_multiple: float = 4.0
@@ -151,6 +155,7 @@ class SignalOptions:
     payload_friction: bool = True
     accelerometer_noise: bool = True
     coloured_accelerometer_noise: bool = True
+    drift_displacement_covariate: bool = True
     check_accelerometer: bool = True
 
     def band_for(self, measured_acceleration: bool) -> "SignalOptions":
@@ -172,10 +177,11 @@ class SignalOptions:
 class PreparedTest:
     """A periodic test ready for the likelihood.
 
-    Arrays named like the model (t, F, u, v, a) hold the kept, filtered samples; `keep` marks
-    those that enter the likelihood (outside the reversal band). `velocity_full` is the
-    filtered velocity at the recorded rate, from which velocity regressors are rebuilt and
-    filtered exactly like the force (see `regressor`).
+    Arrays named like the model (t, F, u, v, a) hold the kept, filtered samples, F, u and a
+    less their projection on constant_shape (each test's free constant; v is not a column);
+    `keep` marks those that enter the likelihood (outside the reversal band). `velocity_full`
+    is the filtered velocity at the recorded rate, from which velocity regressors are rebuilt
+    and filtered exactly like the force (see `regressor`).
     """
 
     id: str
@@ -220,7 +226,8 @@ class PreparedTest:
         return max(0, self.window.start - margin), min(len(self.velocity_full), self.window.stop + margin)
 
     def regressor(self, of_velocity: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-        """filter(g(v))[index]: a velocity regressor treated exactly as the force was.
+        """filter(g(v))[index]: a velocity regressor treated exactly as the force was (less
+        its projection on constant_shape).
 
         `of_velocity` maps an array of velocities to regressor values (extra leading axes
         are allowed in its output, the last axis being time). Only the steady window plus a
@@ -256,7 +263,7 @@ class PreparedTest:
     def acceleration_noise(self, n_draws: int, seed: int = 0) -> np.ndarray:
         """(n_draws, len(index)) draws of the accelerometer's noise (raw_acceleration_noise)
         treated exactly as the recorded acceleration was: cycle-synchronous average (when it was
-        applied), reversal weight, low-pass, decimation. What the accelerometer's noise adds to
+        applied), reversal weight, low-pass, decimation, the free constant's projection. What the accelerometer's noise adds to
         `a`, for the errors-in-variables correction of the moments; zeros when none is known.
         """
         if not self.acceleration_noise_known:
@@ -459,8 +466,10 @@ def project_out(values: np.ndarray, shape: np.ndarray, keep: np.ndarray) -> np.n
 
     The free constant of each test (SignalOptions.free_constant). A constant force c, weighted
     and low-passed like everything else, reaches the kept samples as c*filter(w); projecting
-    filter(w) out of the force and every regressor is the exact least-squares treatment of an
-    unknown c. Why: without_steady_offsets removes the steady window's means of F, u and a, which
+    filter(w) out of the force and every regressor removes any such c exactly (ordinary least
+    squares over the kept samples; the likelihood then whitens what is left, so the constant is
+    not re-estimated in its AR(1) metric, and each test's noise has one degree of freedom fewer
+    than it counts, 2-4 % of its variance at 25-60 kept samples). Why: without_steady_offsets removes the steady window's means of F, u and a, which
     is exact only if mean(F) = Ke*mean(u), that is if the dissipative force averages to zero
     over the window, and neither the model's regressors nor the table's real force need to: a
     controller, a valve or a stick that holds one direction a few samples longer leaves sign(v)
@@ -482,10 +491,12 @@ def project_out(values: np.ndarray, shape: np.ndarray, keep: np.ndarray) -> np.n
 def without_steady_offsets(record: TestRecord, window: CycleWindow) -> TestRecord:
     """The record with the means of F, u, a and v over the steady window's whole cycles removed.
 
-    Over whole cycles of a periodic motion the means of a and v are zero, and so is the mean of
-    every dissipative force (odd in v, symmetric cycles), so mean(F) = Ke*mean(u): removing the
-    means of F and u together keeps F = Me*a + Ke*u + D(v) exact whether the table oscillates
-    about the strut's neutral or not, and removes constant sensor offsets of every channel.
+    Over whole cycles of a periodic motion the means of a and v are zero, and where the
+    dissipative force averages to zero too (odd in v, exactly symmetric cycles) mean(F) =
+    Ke*mean(u): removing the means of F and u together then keeps F = Me*a + Ke*u + D(v) exact
+    whether the table oscillates about the strut's neutral or not, and removes constant sensor
+    offsets of every channel. Where it does not, what is left is a constant force, which each
+    test's free constant takes (project_out).
     Why: the model has no constant term, and measured on randomised virtual series an offset of
     3 kN on F, 3 mm on u and 0.05 m/s^2 on a moved Me by -2.4 % and Ke by -3.2 % (seed 2) with
     intervals narrower than without it.
@@ -659,7 +670,8 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         above_band = (np.asarray(measured_a, dtype=float) - a_low)[window.start : window.stop]
         noise_sd = mid_stroke_noise_sd(above_band, speed)
         if options.coloured_accelerometer_noise:
-            noise_excess = _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, noise_sd)
+            noise_excess = _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, noise_sd,
+                                                   options.drift_displacement_covariate)
 
     F_f = zero_phase_lowpass(record.F * weight, cutoff, fs)
     u_model = zero_phase_lowpass(record.u * weight, cutoff, fs) if weighted else u_f
@@ -701,7 +713,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     )
 
 
-def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd):
+def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd, displacement_covariate=True):
     """The recorded acceleration's in-band noise beyond its white level
     (signals.coloured_noise_excess), with the low-passed force, displacement, its second time
     derivative and sign(v) as covariates: what the motion does beyond its harmonics shows in
@@ -721,8 +733,8 @@ def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd):
         band_gain=lambda frequency: lowpass_power_gain(frequency, cutoff, fs),
         # their low-passes are most of the cost, skipped where nothing can be read (6 cycles or fewer)
         covariates=lambda: [zero_phase_lowpass(record.F, cutoff, fs)[span], u_f[span],
-                            time_derivative(time_derivative(u_f, fs), fs)[span],
-                            zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]],
+                            zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]]
+        + ([time_derivative(time_derivative(u_f, fs), fs)[span]] if displacement_covariate else []),
     )
 
 
