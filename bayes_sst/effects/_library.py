@@ -351,9 +351,10 @@ class ChannelDelay(Effect):
 
         F_recorded(t) = F(t - d),   so the model is fitted to F_recorded(t + d).
 
-    No linear coefficient (its amplitude gate reads d's distance from null_setting, 0); d uniform on -10 to 40 ms, searched in 0.25 ms steps up to 12 ms
-    and 0.5 ms steps beyond (the misfit of a delay of 15 ms or more is large, so its peak is
-    broad enough in nats for the coarser step), the best step then refined to 0.05 ms. A
+    No linear coefficient (its amplitude gate reads d's distance from null_setting, 0); d uniform
+    on -10 to 40 ms, searched in 0.25 ms steps up to 12 ms and 0.5 ms steps beyond (the misfit
+    of a delay of 15 ms or more is large, so its peak is broad enough in nats for the coarser
+    step), the best step then refined to 0.05 ms. A
     negative d is a force that leads the motion: motion channels read through a slower
     conditioning filter than the load cell's.
     """

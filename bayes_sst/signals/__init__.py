@@ -11,9 +11,9 @@ from bayes_sst.signals._prepare import (
     friction_load,
     prepare_series,
     prepare_test,
+    project_out,
     recorded_velocity_is_quieter,
     reversal_weight,
-    project_out,
     without_steady_offsets,
 )
 
@@ -34,12 +34,12 @@ __all__ = [
     "periodic_component",
     "prepare_series",
     "prepare_test",
+    "project_out",
     "recorded_velocity_is_quieter",
     "reversal_weight",
     "second_derivative",
     "steady_cycles",
     "time_derivative",
-    "project_out",
     "without_steady_offsets",
     "zero_phase_lowpass",
 ]

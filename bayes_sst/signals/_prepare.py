@@ -80,7 +80,7 @@ from bayes_sst.io._series import sample_rate_of
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import lowpass_power_gain, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import lowpass_power_gain, second_derivative, time_derivative, zero_phase_lowpass
 from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
@@ -243,8 +243,6 @@ class PreparedTest:
     def without_constant(self, values: np.ndarray) -> np.ndarray:
         """values less their least-squares projection on constant_shape over the kept samples
         (last axis: the samples at `index`); unchanged without a free constant."""
-        if self.constant_shape is None:
-            return values
         return project_out(values, self.constant_shape, self.keep)
 
     @property
@@ -263,8 +261,9 @@ class PreparedTest:
     def acceleration_noise(self, n_draws: int, seed: int = 0) -> np.ndarray:
         """(n_draws, len(index)) draws of the accelerometer's noise (raw_acceleration_noise)
         treated exactly as the recorded acceleration was: cycle-synchronous average (when it was
-        applied), reversal weight, low-pass, decimation, the free constant's projection. What the accelerometer's noise adds to
-        `a`, for the errors-in-variables correction of the moments; zeros when none is known.
+        applied), reversal weight, low-pass, decimation, the free constant's projection. What the
+        accelerometer's noise adds to `a`, for the errors-in-variables correction of the moments;
+        zeros when none is known.
         """
         if not self.acceleration_noise_known:
             return np.zeros((n_draws, len(self.index)))
@@ -461,17 +460,20 @@ def _velocity_map(fs: float, cutoff: float, options: SignalOptions, *, of_displa
     return smooth
 
 
-def project_out(values: np.ndarray, shape: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """values - c*shape, c = sum_keep(values*shape)/sum_keep(shape^2), along the last axis.
+def project_out(values: np.ndarray, shape: np.ndarray | None, keep: np.ndarray) -> np.ndarray:
+    """values - c*shape, c = sum_keep(values*shape)/sum_keep(shape^2), along the last axis
+    (values unchanged where shape is None: no free constant).
 
     The free constant of each test (SignalOptions.free_constant). A constant force c, weighted
     and low-passed like everything else, reaches the kept samples as c*filter(w); projecting
     filter(w) out of the force and every regressor removes any such c exactly (ordinary least
     squares over the kept samples; the likelihood then whitens what is left, so the constant is
     not re-estimated in its AR(1) metric, and each test's noise has one degree of freedom fewer
-    than it counts, 2-4 % of its variance at 25-60 kept samples). Why: without_steady_offsets removes the steady window's means of F, u and a, which
-    is exact only if mean(F) = Ke*mean(u), that is if the dissipative force averages to zero
-    over the window, and neither the model's regressors nor the table's real force need to: a
+    than it counts, 2-4 % of its variance at 25-60 kept samples).
+
+    Why: without_steady_offsets removes the steady window's means of F, u and a, which is exact
+    only if mean(F) = Ke*mean(u), that is if the dissipative force averages to zero over the
+    window, and neither the model's regressors nor the table's real force need to: a
     controller, a valve or a stick that holds one direction a few samples longer leaves sign(v)
     a mean of 0.1-0.3 %, and the table's force at rest in the reversal band is not the model's
     at all. On the fifth independent simulator with all noise removed (seed 6) the force kept a
@@ -480,6 +482,8 @@ def project_out(values: np.ndarray, shape: np.ndarray, keep: np.ndarray) -> np.n
     Fitted over the kept samples, where the model holds, the constant takes up neither.
     """
     values = np.asarray(values, dtype=float)
+    if shape is None:
+        return values
     kept_shape = shape[keep]
     norm = float(kept_shape @ kept_shape)
     if norm <= 0.0:
@@ -680,9 +684,6 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     if options.free_constant and keep.any():
         constant_shape = zero_phase_lowpass(weight, cutoff, fs)[index] if weighted else np.ones(len(index))
 
-    def kept_columns(values):
-        return values if constant_shape is None else project_out(values, constant_shape, keep)
-
     return PreparedTest(
         id=spec.id,
         file=spec.file,
@@ -697,10 +698,10 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         window=window,
         index=index,
         t=record.t[index],
-        F=kept_columns(F_f[index]),
-        u=kept_columns(u_model[index]),
+        F=project_out(F_f[index], constant_shape, keep),
+        u=project_out(u_model[index], constant_shape, keep),
         v=v_model[index],
-        a=kept_columns(a_f[index]),
+        a=project_out(a_f[index], constant_shape, keep),
         keep=keep,
         velocity_full=v_model,
         weight_full=weight if weighted else None,
@@ -734,7 +735,7 @@ def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd, d
         # their low-passes are most of the cost, skipped where nothing can be read (6 cycles or fewer)
         covariates=lambda: [zero_phase_lowpass(record.F, cutoff, fs)[span], u_f[span],
                             zero_phase_lowpass(np.sign(v_f), cutoff, fs)[span]]
-        + ([time_derivative(time_derivative(u_f, fs), fs)[span]] if displacement_covariate else []),
+        + ([second_derivative(u_f, fs)[span]] if displacement_covariate else []),
     )
 
 
