@@ -1405,6 +1405,26 @@ def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_res
     assert clean["resting"]["resting"]["excess"] + 3 * clean["resting"]["resting"]["se"] < RESTING_EXCESS
 
 
+def test_a_test_that_does_not_repeat_from_cycle_to_cycle_gets_a_note():
+    """unsteady_test_notes: the fifth simulator's series with a 2.2 t specimen at 6.5 Hz had one
+    test (5.05 Hz) with a cycle-to-cycle residual of 6451 N against a median of 118 N for the
+    others (58 times); clean series reach 13 times. Only the first kind gets a note, naming the
+    test and how to leave it out."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._diagnose import UNSTEADY_FLOOR_RATIO, unsteady_test_notes
+
+    tests = [SimpleNamespace(id=f"T{j:02d}", frequency_hz=f) for j, f in enumerate((0.5, 5.05, 1.0, 2.0, 0.3), 1)]
+    floors = np.array([92.0, 6451.0, 215.0, 118.0, 112.0])
+    (note,) = unsteady_test_notes(tests, floors)
+    assert note.startswith("test T02 (5.05 Hz) does not repeat") and "--exclude-test T02" in note
+    assert "6451 N" in note and "56 times" in note  # 6451/median(92, 215, 118, 112) = 6451/115
+    clean = np.array([92.0, 13 * 115.0, 215.0, 118.0, 112.0])
+    assert unsteady_test_notes(tests, clean) == []
+    assert UNSTEADY_FLOOR_RATIO * 115.0 > 13 * 115.0
+    assert unsteady_test_notes(tests[:1], floors[:1]) == []
+
+
 def test_a_smaller_excess_over_every_reversal_selects_only_where_the_resting_reversals_do_not_lag():
     """selects_over_every_reversal: 0.15 at z 5 selects whatever the lead; 0.12-0.15 at z 5 only
     with a resting reading whose lead over the sweeping reversals is above -2 of its se (the
