@@ -1407,9 +1407,9 @@ def test_the_breakaway_check_reads_stiction_at_the_reversals_where_the_table_res
 
 def test_a_test_that_does_not_repeat_from_cycle_to_cycle_gets_a_note():
     """unsteady_test_notes: the fifth simulator's series with a 2.2 t specimen at 6.5 Hz had one
-    test (5.05 Hz) with a cycle-to-cycle residual of 6451 N against a median of 118 N for the
+    test (5.05 Hz) with a cycle-to-cycle residual of 6451 N against a median of 112 N for the
     others (58 times); clean series reach 13 times. Only the first kind gets a note, naming the
-    test and how to leave it out."""
+    test and how to leave it out (hand-made floors below)."""
     from types import SimpleNamespace
 
     from bayes_sst.diagnosis._diagnose import UNSTEADY_FLOOR_RATIO, unsteady_test_notes

@@ -319,7 +319,7 @@ def noise_floor(test: EffectData, residual_full: np.ndarray) -> float:
 # whose tables stick differently from cycle to cycle), the fifth simulator's 2.2 t specimen at
 # 6.5 Hz reads 58 in the one test near its resonance (5.05 Hz: the free vibration started by
 # the ramp-in is still ringing through the steady cycles), which put the series' floor at
-# 1488 N against 118 N for the median test and let the verdict read "none".
+# 1488 N against 112 N for the other tests' median and let the verdict read "none".
 UNSTEADY_FLOOR_RATIO = 20.0
 
 
