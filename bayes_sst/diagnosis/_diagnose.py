@@ -326,12 +326,12 @@ UNSTEADY_FLOOR_RATIO = 20.0
 def unsteady_test_notes(tests: Sequence[EffectData], floors: np.ndarray) -> list[str]:
     """A note for each test whose noise floor exceeds UNSTEADY_FLOOR_RATIO times the median of
     the other tests' floors."""
+    floors = np.asarray(floors, dtype=float)
+    if len(floors) < 2:
+        return []
     notes = []
     for j, test in enumerate(tests):
-        others = np.delete(np.asarray(floors, float), j)
-        if len(others) == 0:
-            continue
-        median = float(np.median(others))
+        median = float(np.median(np.delete(floors, j)))
         if median > 0 and floors[j] > UNSTEADY_FLOOR_RATIO * median:
             notes.append(
                 f"test {test.id} ({test.frequency_hz:g} Hz) does not repeat from cycle to cycle: its cycle-to-cycle "
