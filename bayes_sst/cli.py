@@ -82,6 +82,10 @@ def _cmd_fit(args) -> int:
     priors = make_priors(args.prior, series.table)
     if args.shared:
         priors = replace(priors, shared=tuple(dict.fromkeys(args.shared)))
+    if args.per_test_alpha:
+        from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR
+
+        priors = replace(priors, alpha_spread=PER_TEST_ALPHA_PRIOR)
     result = fit(
         series,
         chains=args.chains,
@@ -158,6 +162,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="coefficients (Me, Ke, Ce, Fmu) the same in every test (no between-test variation), "
                         "e.g. --shared Me when the moving mass cannot change between tests; names separated "
                         "by commas, or the option repeated")
+    p.add_argument("--per-test-alpha", action="store_true",
+                   help="let the damping exponent vary between tests around the population's (its between-test "
+                        "sd reported as alpha_between_test_sd): for a damping law that is a power law only "
+                        "approximately, read by tests over different speed ranges")
     p.add_argument("--cutoff-multiple", type=float, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
     p.add_argument("--reversal-band", type=float, default=None,

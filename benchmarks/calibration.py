@@ -24,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 from bayes_sst.inference import fit
-from bayes_sst.inference._priors import make_priors
+from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
 from bayes_sst.inference._summary import summarize
 from bayes_sst.signals import SignalOptions
 from bayes_sst.twin import default_plan, random_series
@@ -56,6 +56,8 @@ def main():
                         help="coefficients without between-test variation (default: the package default)")
     parser.add_argument("--payload-share", type=float, default=0.0,
                         help="probability that a test carries a payload (default 0: none)")
+    parser.add_argument("--per-test-alpha", action="store_true",
+                        help="let the damping exponent vary between tests (fit --per-test-alpha)")
     args = parser.parse_args()
     from _options import signal_overrides
 
@@ -68,6 +70,8 @@ def main():
         series, truth = one_series(seed, args.payload_share)
         signals = SignalOptions(**overrides)
         priors = make_priors("generic") if args.shared is None else replace(make_priors("generic"), shared=tuple(args.shared))
+        if args.per_test_alpha:
+            priors = replace(priors, alpha_spread=PER_TEST_ALPHA_PRIOR)
         result = fit(series, seed=seed, signals=signals, prior=priors)
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"]}

@@ -62,6 +62,8 @@ def main():
                         help="override a SignalOptions field, e.g. reversal_band=0.1")
     parser.add_argument("--without-acceleration", action="store_true",
                         help="remove the a (and v) columns before fitting")
+    parser.add_argument("--per-test-alpha", action="store_true",
+                        help="let the damping exponent vary between tests (fit --per-test-alpha)")
     args = parser.parse_args()
     from _options import signal_overrides, without_motion_sensors
 
@@ -101,7 +103,14 @@ def main():
         series = load_series(folder)
         if args.without_acceleration:
             series = without_motion_sensors(series)
-        result = fit(series, seed=seed, signals=SignalOptions(**overrides))
+        prior = "generic"
+        if args.per_test_alpha:
+            from dataclasses import replace
+
+            from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
+
+            prior = replace(make_priors("generic", series.table), alpha_spread=PER_TEST_ALPHA_PRIOR)
+        result = fit(series, seed=seed, signals=SignalOptions(**overrides), prior=prior)
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"],
                "divergences": summary["divergences"], "max_r_hat": summary["max_r_hat"],
@@ -117,6 +126,9 @@ def main():
             gain = 1.0 if args.generator in ("valve", "fifth") else gain_truth(series, truth)
             row["payload_friction_gain"] = {"mean": g["mean"], "sd": g["sd"], "q05": g["q05"], "q95": g["q95"],
                                             "truth": gain}
+        if "alpha_between_test_sd" in summary:
+            tau = summary["alpha_between_test_sd"]
+            row["alpha_between_test_sd"] = {"mean": tau["mean"], "q05": tau["q05"], "q95": tau["q95"]}
         rows.append(row)
         cells = "  ".join(
             (f"{row[n]['mean'] - row[n]['truth']:+.3f}" if n == "alpha" else f"{100 * (row[n]['mean'] / row[n]['truth'] - 1):+5.1f}%")
@@ -134,7 +146,7 @@ def main():
         print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f} sd {z.std(ddof=1):.2f}")
     if args.out:
         Path(args.out).write_text(json.dumps({"generator": args.generator, "signals": overrides, "without_acceleration": args.without_acceleration,
-                                              "summary": summary, "rows": rows}, indent=1))
+                                              "per_test_alpha": args.per_test_alpha, "summary": summary, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":

@@ -255,14 +255,19 @@ def test_population_is_right_when_the_recorded_force_is_nearly_noise_free():
 
 
 def _site_problem(seed, spread_prior=(0.03, 1.0), varying=(1.0, 0.0, 1.0, 1.0), noise_loc=0.2,
-                  n_samples=50, phi=(0.3, -0.2, 0.8, 0.0), sigma=(0.9, 1.1, 1.3, 0.7), friction_load=None):
+                  n_samples=50, phi=(0.3, -0.2, 0.8, 0.0), sigma=(0.9, 1.1, 1.3, 0.7), friction_load=None,
+                  alpha_spread=False):
     """A small collapsed problem (one test per phi), its scaled priors and site values: the
     generator (for later draws), the table in JAX and in numpy, the priors and the values;
-    with friction_load (one per test), the payload's friction gain is a site too."""
-    from bayes_sst.inference._model import GAIN_SITE, ScaledPriors
+    with friction_load (one per test), the payload's friction gain is a site too; with
+    alpha_spread, the exponent's between-test sd (on a table with a real damping column)."""
+    from bayes_sst.inference._model import ALPHA_SPREAD_SITE, GAIN_SITE, ScaledPriors
 
     rng = np.random.default_rng(seed)
-    _, table = _random_problem(rng, n_tests=len(phi), n_samples=n_samples)
+    if alpha_spread:
+        table = _damping_problem(rng, n_tests=len(phi), n_samples=n_samples)
+    else:
+        _, table = _random_problem(rng, n_tests=len(phi), n_samples=n_samples)
     if friction_load is not None:
         table = table._replace(load_share=jnp.asarray(1.0 - 1.0 / np.asarray(friction_load)))
     numpy_table = MomentTable(*(np.asarray(field) if isinstance(field, jax.Array) else field for field in table))
@@ -272,21 +277,26 @@ def _site_problem(seed, spread_prior=(0.03, 1.0), varying=(1.0, 0.0, 1.0, 1.0), 
         spread_median=jnp.asarray(spread_prior[0]), spread_log_sd=jnp.asarray(spread_prior[1]),
         noise_loc=noise_loc, noise_log_sd=1.5, varying=jnp.array(varying),
         gain=None if friction_load is None else (1.0, 2.0, 0.0, 6.0),
+        alpha_spread=(0.02, 1.0) if alpha_spread else None, deviation_scale=0.6,
     )
     values = {"alpha": 0.45, "spread": np.array([0.02, 0.05, 0.01, 0.1]), "phi": np.array(phi), "sigma": np.array(sigma)}
     if friction_load is not None:
         values[GAIN_SITE] = 1.6
+    if alpha_spread:
+        values[ALPHA_SPREAD_SITE] = 0.05
     return rng, table, numpy_table, priors, values
 
 
 # spread priors and bearing loads of the start's tests: one spread prior for all, one per
-# coefficient (fit's mass refit holds Me's), and tests under payloads (the friction gain sampled)
-SITE_CASES = [((0.03, 1.0), None), (((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5)), None),
-              ((0.03, 1.0), (1.0, 1.2, 1.0, 1.5))]
+# coefficient (fit's mass refit holds Me's), tests under payloads (the friction gain sampled),
+# and the damping exponent's between-test sd sampled (with payloads too)
+SITE_CASES = [((0.03, 1.0), None, False), (((0.02, 0.03, 0.03, 0.05), (0.35, 1.0, 1.0, 0.5)), None, False),
+              ((0.03, 1.0), (1.0, 1.2, 1.0, 1.5), False), ((0.03, 1.0), None, True),
+              ((0.03, 1.0), (1.0, 1.2, 1.0, 1.5), True)]
 
 
-@pytest.mark.parametrize("spread_prior, friction_load", SITE_CASES)
-def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_prior, friction_load):
+@pytest.mark.parametrize("spread_prior, friction_load, alpha_spread", SITE_CASES)
+def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_prior, friction_load, alpha_spread):
     """The sampler's start carries a potential computed in numpy (inference._model); NumPyro's
     own potential_energy of the same model must give the same number, at the start and away
     from it, with every site's prior and Jacobian; with one spread prior for all coefficients,
@@ -296,7 +306,8 @@ def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_pr
 
     from bayes_sst.inference._model import potential_energy, table_force_model, unconstrained_start
 
-    rng, table, numpy_table, priors, values = _site_problem(7, spread_prior, friction_load=friction_load)
+    rng, table, numpy_table, priors, values = _site_problem(7, spread_prior, friction_load=friction_load,
+                                                            alpha_spread=alpha_spread)
     z = unconstrained_start(values, priors)
     z_numpyro = unconstrain_fn(table_force_model, (table, priors), {}, {k: jnp.asarray(v) for k, v in values.items()})
     for name in values:
@@ -309,8 +320,8 @@ def test_numpy_potential_of_the_start_equals_numpyros_potential_energy(spread_pr
 
 
 
-@pytest.mark.parametrize("spread_prior, friction_load", SITE_CASES)
-def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior, friction_load):
+@pytest.mark.parametrize("spread_prior, friction_load, alpha_spread", SITE_CASES)
+def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior, friction_load, alpha_spread):
     """The start also carries the potential's gradient from numpy (inference._model.
     potential_gradient); reverse-mode differentiation of NumPyro's potential_energy of the same
     model must give the same vector for every site, with a coefficient shared (Ke), with
@@ -319,7 +330,8 @@ def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior, fric
 
     from bayes_sst.inference._model import potential_gradient, table_force_model, unconstrained_start
 
-    rng, table, numpy_table, priors, values = _site_problem(11, spread_prior, friction_load=friction_load)
+    rng, table, numpy_table, priors, values = _site_problem(11, spread_prior, friction_load=friction_load,
+                                                            alpha_spread=alpha_spread)
     z = unconstrained_start(values, priors)
 
     def potential(sites):
@@ -566,3 +578,109 @@ def test_a_shared_coefficients_ignored_spread_moves_the_population_as_refitted_d
         # to 1e-5 of the shift: the table's relative noise floor follows the data's scale
         assert np.max(np.abs(moved - refitted)) < 1e-5 * np.max(np.abs(refitted - plain)), j
         assert abs(moved[0] - plain[0]) > 1e-4  # each test moves the shared mass
+
+
+def test_a_per_test_exponent_deviation_integrates_out_as_one_more_gaussian_coefficient():
+    """Each test's deviation coefficient c_j ~ N(0, rho_d^2) on the damping column's
+    alpha-derivative (DEVIATION, absorb_deviation) must give the likelihood of a dense joint
+    Gaussian in which every test has that fifth column with a zero-mean coefficient of sd rho_d,
+    at alpha on a grid node (where the interpolated d' is the tabulated one); rho_d -> 0 must
+    give back the plain likelihood, and a larger rho_d must fit data whose tests differ in their
+    exponent better than rho_d -> 0 does."""
+    rng = np.random.default_rng(31)
+    grid = np.arange(0.05, 1.96, 0.025)
+    node = 26  # alpha = 0.7
+    alpha = float(grid[node])
+    per_test, zs = [], []
+    for j in range(4):
+        t = np.arange(90) * 0.03
+        w = 1.0 + 0.5 * j
+        v = (0.3 + 0.2 * j) * np.cos(w * t) + 0.02 * rng.standard_normal(len(t))
+        base = np.stack([-w * np.sin(w * t), np.sin(w * t) / w, np.zeros(len(t)), np.sign(v)])
+        X = np.repeat(base[None], len(grid), axis=0)
+        X[:, 2] = np.abs(v)[None] ** grid[:, None] * np.sign(v)[None]
+        dX = np.zeros_like(X)
+        dX[:, 2] = X[:, 2] * np.log(np.abs(v))[None]
+        exponent = alpha + 0.15 * (j - 1.5)  # tests that read different exponents
+        y = (base[0] + base[1] + 0.6 * np.abs(v) ** exponent * np.sign(v) + 0.3 * base[3]
+             + 0.005 * rng.standard_normal(len(t)))
+        per_test.append((y, X, dX))
+        zs.append(np.vstack([y, X[node], dX[node, 2]]))
+    table = _table(per_test, grid)
+    J = len(per_test)
+    phi, sigma = np.array([0.2, -0.1, 0.4, 0.0]), np.array([0.006, 0.005, 0.007, 0.005])
+    rho, m0, s0 = np.array([0.1, 0.2, 0.3, 0.1]), np.array([1.0, 1.0, 0.5, 0.3]), np.array([1.0, 1.0, 0.5, 0.5])
+    args = (jnp.asarray(alpha), jnp.asarray(rho), jnp.asarray(phi), jnp.asarray(sigma), jnp.asarray(m0), jnp.asarray(s0))
+
+    def dense(spread):
+        ys, Xs, Ds = [], [], []
+        for z, p in zip(zs, phi):
+            whitened = z[:, 1:] - p * z[:, :-1]
+            ys.append(whitened[0])
+            Xs.append(whitened[1:5].T)
+            Ds.append(whitened[5])
+        y, X_mu = np.concatenate(ys), np.concatenate(Xs)
+        cov = X_mu @ np.diag(s0**2) @ X_mu.T
+        offset = 0
+        for X, D, s in zip(Xs, Ds, sigma):
+            n = len(D)
+            block = slice(offset, offset + n)
+            cov[block, block] += X @ np.diag(rho**2) @ X.T + spread**2 * np.outer(D, D) + s**2 * np.eye(n)
+            offset += n
+        resid = y - X_mu @ m0
+        return -0.5 * (len(y) * np.log(2 * np.pi) + np.linalg.slogdet(cov)[1] + resid @ np.linalg.solve(cov, resid))
+
+    for spread in (0.02, 0.1, 0.5):
+        ours = float(collapsed_log_likelihood(table, *args, deviation=jnp.asarray(spread)))
+        assert ours == pytest.approx(dense(spread), rel=1e-9, abs=1e-7)
+    plain = float(collapsed_log_likelihood(table, *args))
+    assert float(collapsed_log_likelihood(table, *args, deviation=jnp.asarray(1e-7))) == pytest.approx(plain, abs=1e-4)
+    # with Ce nearly shared, only the deviation can take up the tests' different exponents
+    tight = (args[0], jnp.asarray([0.1, 0.2, 0.02, 0.1])) + args[2:]
+    assert (float(collapsed_log_likelihood(table, *tight, deviation=jnp.asarray(0.15)))
+            > float(collapsed_log_likelihood(table, *tight)) + 10.0)
+    # the draws' per-test log-likelihood carries the same integral
+    host = MomentTable(*(np.asarray(x) if hasattr(x, "shape") else x for x in table))
+    value = collapsed_log_likelihood(host, *(np.asarray(a) for a in args), xp=np, deviation=0.1)
+    assert value == pytest.approx(dense(0.1), rel=1e-9, abs=1e-7)
+    # each test's exponent given its coefficients: the Gaussian conditional of c_j from the
+    # whitened samples themselves, c = d'(y - X theta)/(d'd' + s^2/rho_d^2), delta = c / Ce_j
+    from bayes_sst.inference._collapsed import draw_deviations
+
+    theta = np.array([[1.0, 1.0, 0.6, 0.3]]) * (1.0 + 0.1 * rng.standard_normal((J, 4)))
+    spread = 0.1
+    for normal in (0.0, 1.0):
+        got = draw_deviations(np.full((1, J), normal), host, np.array([alpha]), theta[None], phi[None], sigma[None],
+                              np.array([spread]))[0]
+        for j, (z, p, s, th) in enumerate(zip(zs, phi, sigma, theta)):
+            whitened = z[:, 1:] - p * z[:, :-1]
+            d = whitened[5]
+            precision = d @ d / s**2 + 1.0 / spread**2
+            c = (d @ (whitened[0] - th @ whitened[1:5]) / s**2) / precision + normal / np.sqrt(precision)
+            assert got[j] == pytest.approx(alpha + c / th[2], rel=1e-9)
+
+
+def test_the_deviation_spreads_closed_form_gradient_equals_reverse_mode_differentiation():
+    """With each test's deviation coefficient integrated out, the closed-form gradient
+    (absorb_deviation_gradient through marginal_gradient) against JAX's derivative of the
+    traced value, for every sampled site and the spread rho_d, with the payload's gain on."""
+    from bayes_sst.inference._collapsed import _collapsed_value
+
+    rng = np.random.default_rng(32)
+    table = _damping_problem(rng)
+    J = table.n_pairs.shape[0]
+    table = table._replace(load_share=jnp.asarray(1.0 - 1.0 / (1.0 + rng.uniform(0.0, 0.5, J))))
+    for spread in (0.01, 0.08, 0.4):
+        args = (jnp.asarray(rng.uniform(0.4, 1.2)), jnp.asarray(np.array([0.05, 0.08, 0.2, 0.1])),
+                jnp.asarray(rng.uniform(-0.5, 0.8, J)), jnp.asarray(rng.uniform(0.03, 0.1, J)),
+                jnp.asarray(1 + 0.1 * rng.standard_normal(4)), jnp.full(4, 0.7), jnp.asarray(1.3), jnp.asarray(spread))
+        ours = jax.value_and_grad(lambda *a: collapsed_log_likelihood(table, *a[:6], gain=a[6], deviation=a[7]),
+                                  argnums=tuple(range(8)))(*args)
+        traced = jax.value_and_grad(lambda *a: _collapsed_value(table, *a[:6], jnp, a[6], a[7]),
+                                    argnums=tuple(range(8)))(*args)
+        assert float(ours[0]) == pytest.approx(float(traced[0]), rel=1e-12)
+        for name, mine, reference in zip(("alpha", "rho", "phi", "sigma", "m0", "s0", "gain", "deviation"),
+                                         ours[1], traced[1]):
+            mine, reference = np.asarray(mine), np.asarray(reference)
+            assert np.all(np.isfinite(mine)) and np.max(np.abs(reference)) > 0, name
+            np.testing.assert_allclose(mine, reference, rtol=1e-6, atol=1e-8 * np.max(np.abs(reference)), err_msg=name)

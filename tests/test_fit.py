@@ -530,3 +530,39 @@ def test_the_mass_spread_is_read_per_chain():
     assert relative.mean() < IMPLAUSIBLE_MASS_SPREAD
     assert largest_chain_spread(posterior, "Me") == pytest.approx(relative[0].mean(), rel=1e-12)
     assert largest_chain_spread(posterior, "Me") > IMPLAUSIBLE_MASS_SPREAD
+
+
+def test_a_per_test_exponent_is_recovered_and_keeps_its_spread_out_of_ce():
+    """Tests whose damping exponents differ (the twin's alpha_spread: 0.08 between tests, a
+    damping law read over different speed ranges): with --per-test-alpha the exponent's
+    between-test sd must contain the spread the twin drew, the population values their truth,
+    and the per-test Ce must no longer carry the exponent's spread as the shared-exponent fit's
+    does."""
+    from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
+
+    series = simulate("sst-paper", seed=5, spread=0.02, alpha_spread=0.08)
+    drawn = np.array([t.spec.extra["truth"]["alpha"] for t in series.periodic_tests])
+    truth = series.extra["truth"]
+    per_test = fit(series, seed=1, prior=replace(make_priors("generic"), alpha_spread=PER_TEST_ALPHA_PRIOR))
+    shared = fit(series, seed=1)
+    summary, shared_summary = summarize(per_test.tree), summarize(shared.tree)
+    assert summary["converged"]
+    tau = summary["alpha_between_test_sd"]
+    assert tau["q05"] <= drawn.std(ddof=1) <= tau["q95"], (tau, drawn.std(ddof=1))
+    for name in NAMES:
+        low, high = np.quantile(per_test.posterior[name].values, [0.005, 0.995])
+        assert low <= truth[name] <= high, (name, low, high, truth[name])
+    assert abs(summary["parameters"]["alpha"]["mean"] - truth["alpha"]) < 0.05
+    ce_spread = summary["between_test_spread"]["Ce"]["relative_sd_mean"]
+    assert ce_spread < 0.6 * shared_summary["between_test_spread"]["Ce"]["relative_sd_mean"]
+    assert "alpha_between_test_sd" not in shared_summary
+    # each test's own exponent follows the one the twin drew for it
+    own = per_test.posterior["alpha_test"].mean(("chain", "draw")).values
+    assert np.corrcoef(own, drawn)[0, 1] > 0.8
+    assert np.sqrt(np.mean((own - drawn) ** 2)) < 0.5 * drawn.std()
+    # the design's pieces share the exponent: it says so instead of starting from narrower intervals
+    from bayes_sst.design._engine import design_posterior
+
+    with pytest.raises(ValueError, match="--per-test-alpha"):
+        design_posterior(per_test.tree, per_test.prepared)
+    assert "(sd of the exponent itself)" in format_summary(summary)

@@ -110,6 +110,13 @@ def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
     priors = json.loads(tree.attrs.get("priors", "{}") or "{}")
     if "centres" not in priors:
         raise ValueError("the run does not record its priors (posterior.nc attrs 'priors'); refit it with this version")
+    if "alpha_between_test_sd" in tree["posterior"]:
+        # the engine's Gaussian pieces share the exponent between tests; with each test's own
+        # deviation integrated out the run's intervals are wider, and the design would start
+        # from (and predict) intervals narrower than the run's
+        raise ValueError("the run was fitted with the damping exponent varying between tests (fit --per-test-alpha), "
+                         "which the design does not model yet: fit the series again without --per-test-alpha "
+                         "for the design")
     centres = np.array([priors["centres"][name] for name in COEFFICIENTS], dtype=float)
     relative_sd = float(priors.get("relative_sd", 1.0))
     ignored = priors.get("between_test_spread", {}).get("ignored_by_sharing") or {}

@@ -105,9 +105,9 @@ def friction_factors(table: MomentTable, gain, xp=jnp):
     return payload_friction_factor(xp.asarray(gain)[..., None], table.load_share)
 
 
-def _sign_column(factors):
-    """The diagonal of E, (5, [draws,] J): 1 in every row but SIGN, which holds the factors."""
-    unit = np.zeros(5)
+def _sign_column(factors, size: int = 5):
+    """The diagonal of E, (size, [draws,] J): 1 in every row but SIGN, which holds the factors."""
+    unit = np.zeros(size)
     unit[SIGN] = 1.0
     return 1.0 + _trailing(unit, 1 + factors.ndim) * (factors - 1.0)
 
@@ -117,7 +117,7 @@ def _scaled_sign(S, factors, xp):
     ([draws,] J): E S E."""
     if factors is None:
         return S
-    column = _sign_column(factors)
+    column = _sign_column(factors, S.shape[-2 - factors.ndim])
     return S * column[:, None] * column[None, :]
 
 
@@ -259,6 +259,156 @@ def whitened_at(table: MomentTable, alpha, phi, xp=jnp, gain=1.0):
     return _lagged(lag_sums_at(table, alpha, xp, gain), phi)
 
 
+# A test's own damping exponent. The population's alpha is shared, but the damping law of a real
+# table is a power law only approximately, and tests that sweep different speed ranges read
+# different exponents from it. To first order in a test's deviation delta_j,
+#
+#     Ce_j |v|^(alpha + delta_j) sign v  ~  Ce_j d(alpha) + c_j d'(alpha),   c_j = Ce_j delta_j,
+#
+# with d' = d(|v|^alpha sign v)/d alpha = |v|^alpha log|v| sign v, which the Hermite interpolation
+# gives exactly as the slope-weighted sum of the same basis columns (d' = sum_k w'_k K_k). With
+# c_j ~ N(0, rho_d^2) (rho_d = tau |Ce|, tau the between-test sd of the exponent) the extended
+# moments z = (y, a, u, d, sign, d') are reduced to those of (y, a, u, d, sign) by integrating c_j
+# out (absorb_deviation), and the rest of the likelihood is as before.
+DEVIATION = 5  # index of d' in the extended z
+
+
+def hermite_curvatures(table: MomentTable, alpha, xp=jnp):
+    """The second alpha-derivatives of hermite_weights' weights, (4, *alpha.shape)."""
+    position = (alpha - table.alpha_start) / table.alpha_step
+    g = xp.clip(xp.floor(position), 0, table.cross.shape[0] - 1)
+    s = position - g
+    return xp.stack([12 * s - 6, 6 * s - 4, 6 - 12 * s, 6 * s - 2]) / (table.alpha_step * table.alpha_step)
+
+
+def deviation_rows(table: MomentTable, alpha, xp=jnp):
+    """Rows DAMPING and DEVIATION of the extended lag sums (3, 6, *batch) and their
+    alpha-derivatives, batch = (J,) or (draws, J) for alpha (draws,).
+
+    With w, w', w'' the Hermite weights and their alpha-derivatives, C = S(K, o) the basis
+    columns' lag sums with o = (y, a, u, sign) and G = S(K, K):
+
+        row d  = (C w, w'Gw, C w (sign), w'G w'),    row d' = (C w', 0, C w' (sign), w''G w'),
+        d/dalpha row d  = (C w', 2 w'G w', C w' (sign), w''G w' + w'G w''),
+        d/dalpha row d' = (C w'', 0, C w'' (sign), 2 w''G w'')
+
+    (the (d, d') entry is carried by row d only, the zero in row d' keeps it from counting twice).
+    """
+    g, weights, slopes = hermite_weights(table, alpha, xp)
+    curvatures = hermite_curvatures(table, alpha, xp)
+    cell_cross, cell_gram = table.cross[g], table.gram[g]
+    many = bool(xp.ndim(alpha))
+    if many:
+        def cross(w):
+            return xp.einsum("kd,dlkmj->lmdj", w, cell_cross, optimize=True)
+
+        def gram(w):
+            return xp.einsum("dlkmj,md->lkdj", cell_gram, w, optimize=True)
+
+        def quadratic(w, gram_w):
+            return xp.einsum("lkdj,kd->ldj", gram_w, w, optimize=True)
+    else:
+        weights, slopes, curvatures = weights[..., None], slopes[..., None], curvatures[..., None]
+
+        def cross(w):
+            return xp.sum(w[None, :, None] * cell_cross, axis=1)
+
+        def gram(w):
+            return xp.sum(cell_gram * w[None, None, :], axis=2)
+
+        def quadratic(w, gram_w):
+            return xp.sum(gram_w * w[None, :], axis=1)
+
+    c_w, c_s, c_c = cross(weights), cross(slopes), cross(curvatures)
+    g_s, g_c = gram(slopes), gram(curvatures)
+    wGs, sGs, wGc, sGc = quadratic(weights, g_s), quadratic(slopes, g_s), quadratic(weights, g_c), quadratic(slopes, g_c)
+    wGw = quadratic(weights, gram(weights))
+    zero = xp.zeros_like(wGw)
+
+    def row(o, d_entry, deviation_entry):
+        return xp.stack([o[:, 0], o[:, 1], o[:, 2], d_entry, o[:, 3], deviation_entry], axis=1)
+
+    return (row(c_w, wGw, wGs), row(c_s, zero, sGs),
+            row(c_s, 2.0 * wGs, sGs + wGc), row(c_c, zero, 2.0 * sGc))
+
+
+def _with_rows(base, rows):
+    """base (3, n, n, J) (zero in the rows set) with each (index, row) of rows set as a row and
+    column, row (3, n, *batch), batch = (J,) or (draws, J)."""
+    n, n_batch = base.shape[1], rows[0][1].ndim - 2
+    out = base.reshape(base.shape[:3] + (1,) * (n_batch - 1) + base.shape[3:])
+    for index, row in rows:
+        unit = np.zeros(n)
+        unit[index] = 1.0
+        e_row, e_col = _trailing(unit, 2 + n_batch), _trailing(unit[None], 2 + n_batch)
+        out = out + e_row * row[:, None] + e_col * row[:, :, None] - e_row * e_col * row[:, index][:, None, None]
+    return out
+
+
+def extended_lag_sums(table: MomentTable, alpha, xp=jnp, gain=1.0, with_slope: bool = False):
+    """The lag sums of z = (y, a, u, d, sign, d') at alpha, (3, 6, 6, *batch), and with_slope
+    the alpha-derivatives of their rows DAMPING and DEVIATION too, (3, 6, *batch) each (the
+    payload's friction gain scaling all, friction_factors; the derivative of the (d, d') entry
+    is in the first only, see deviation_rows)."""
+    row_d, row_deviation, slope_d, slope_deviation = deviation_rows(table, alpha, xp)
+    base = xp.pad(table.constant, ((0, 0), (0, 1), (0, 1), (0, 0)))
+    factors = friction_factors(table, gain, xp)
+    S = _scaled_sign(_with_rows(base, [(DAMPING, row_d), (DEVIATION, row_deviation)]), factors, xp)
+    if not with_slope:
+        return S
+    if factors is not None:
+        column = _sign_column(factors, 6)
+        slope_d, slope_deviation = slope_d * column, slope_deviation * column
+    return S, (slope_d, slope_deviation)
+
+
+def absorb_deviation(extended, noise, deviation_spread, xp=jnp):
+    """Integrate each test's deviation coefficient c_j ~ N(0, rho_d^2) out of its whitened
+    extended moments W (6, 6, *batch): with P = W[:5, :5], q = W[:5, d'], w = W[d', d'],
+    s the noise sd,
+
+        p(y | theta) = integral N(y - X theta - c d') N(c; 0, rho_d^2) dc
+        -> W_reduced = P - q q' / r,   r = w + s^2 / rho_d^2,
+           log-likelihood + extra,     extra = -1/2 log(1 + rho_d^2 w / s^2)
+
+    (completing the square in c). Returns W_reduced (5, 5, *batch), extra (*batch) and
+    (q, r, w) for absorb_deviation_gradient."""
+    var = noise * noise
+    spread = xp.maximum(deviation_spread, SPREAD_FLOOR)
+    P, q, w = extended[:5, :5], extended[:5, DEVIATION], extended[DEVIATION, DEVIATION]
+    r = w + var / (spread * spread)
+    reduced = P - q[:, None] * q[None, :] / r
+    extra = -0.5 * xp.log1p(spread * spread * w / var)
+    return reduced, extra, (q, r, w)
+
+
+def absorb_deviation_gradient(d_reduced, parts, noise, deviation_spread, xp=jnp):
+    """Given G = dl/dW_reduced (5, 5, J), the derivative of l + sum extra (absorb_deviation) with
+    respect to the extended W (6, 6, J), the noise sd (J,) and rho_d:
+
+        dl/dP = G,   dl/dq = -2 G q / r,   dl/dr = q'Gq / r^2,
+        d extra/dw = -1/(2r),   d extra/ds^2 = w / (2 s^2 r),   d extra/drho_d = -w / (rho_d r),
+        dr/dw = 1,   dr/ds^2 = 1/rho_d^2,   dr/drho_d = -2 s^2 / rho_d^3
+
+    (q enters W twice, as row and as column, so each of its two entries in W gets -G q / r)."""
+    q, r, w = parts
+    var = noise * noise
+    spread = xp.maximum(deviation_spread, SPREAD_FLOOR)
+    Gq = xp.sum(d_reduced * q[None, :], axis=1)  # (5, J)
+    qGq = xp.sum(q * Gq, axis=0)
+    d_r = qGq / (r * r)
+    column = -Gq / r
+    corner = d_r - 0.5 / r
+    d_extended = xp.concatenate([
+        xp.concatenate([d_reduced, column[:, None]], axis=1),
+        xp.concatenate([column[None], corner[None, None]], axis=1),
+    ], axis=0)
+    d_var = d_r / (spread * spread) + 0.5 * w / (var * r)
+    d_spread = xp.sum(-2.0 * var * d_r / (spread * spread * spread) - w / (spread * r))
+    d_spread = xp.where(deviation_spread >= SPREAD_FLOOR, d_spread, 0.0)
+    return d_extended, 2.0 * noise * d_var, d_spread
+
+
 # spreads below this (scaled units, i.e. relative to the prior centre) are raised to it inside
 # test_terms, so that D is invertible; a coefficient shared by all tests (spread 0) then varies
 # by 1e-4 % between tests, far below any posterior sd
@@ -321,8 +471,23 @@ def _noise_sd(table: MomentTable, sigma, xp):
     return xp.sqrt(sigma * sigma + table.noise_floor * table.noise_floor)
 
 
-def _terms(table, alpha, rho, phi, sigma, xp, gain=1.0):
-    return test_terms(whitened_at(table, alpha, phi, xp, gain), table.n_pairs, _noise_sd(table, sigma, xp), rho, xp)
+def _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation):
+    """The whitened moments the test terms read (5, 5, *batch) and the extra log-likelihood per
+    test: plain, or with each test's deviation coefficient integrated out (absorb_deviation)."""
+    noise = _noise_sd(table, sigma, xp)
+    if deviation is None:
+        return whitened_at(table, alpha, phi, xp, gain), noise, 0.0
+    extended = _lagged(extended_lag_sums(table, alpha, xp, gain), phi)
+    spread = xp.asarray(deviation)
+    spread = spread[..., None] if spread.ndim else spread  # one per draw: broadcast over the tests
+    reduced, extra, _ = absorb_deviation(extended, noise, spread, xp)
+    return reduced, noise, extra
+
+
+def _terms(table, alpha, rho, phi, sigma, xp, gain=1.0, deviation=None):
+    whitened, noise, extra = _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation)
+    terms = test_terms(whitened, table.n_pairs, noise, rho, xp)
+    return terms._replace(c=terms.c + extra)
 
 
 def _symmetric(whitened, xp):
@@ -429,14 +594,15 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
     return value, (d_whitened, d_noise, d_rho, d_prior_mean, d_prior_sd)
 
 
-def _collapsed_value(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain=1.0):
-    return marginal_log_likelihood(whitened_at(table, alpha, phi, xp, gain), table.n_pairs, _noise_sd(table, sigma, xp),
-                                   rho, prior_mean, prior_sd, xp)
+def _collapsed_value(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain=1.0, deviation=None):
+    whitened, noise, extra = _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation)
+    return marginal_log_likelihood(whitened, table.n_pairs, noise, rho, prior_mean, prior_sd, xp) + xp.sum(extra)
 
 
-def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp, gain=1.0):
+def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp, gain=1.0,
+                       deviation=None):
     """collapsed_log_likelihood and its gradient with respect to (alpha, rho, phi, sigma,
-    prior_mean, prior_sd, gain). With G_j = dl/dW_j (marginal_gradient) and the lag sums
+    prior_mean, prior_sd, gain, deviation). With G_j = dl/dW_j (marginal_gradient) and the lag sums
     S_l(alpha) (their row and column SIGN scaled by s_j, friction_factors):
 
         dl/dphi_j   = sum_ab G_j,ab (2 phi_j S2 - S1)_ab
@@ -446,7 +612,12 @@ def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, p
 
     (W_j = E_j W0_j E_j, so dW_j/ds_j is row and column SIGN of W_j divided by s_j, the corner
     counted twice.)
+
+    With a deviation spread rho_d the same formulas run on the extended moments (DEVIATION),
+    G_j coming through absorb_deviation_gradient; deviation None gives a zero derivative for it.
     """
+    if deviation is not None:
+        return _extended_gradient(table, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain, deviation)
     rows, d_rows = damping_rows(table, alpha, xp)
     factors = friction_factors(table, gain, xp)
     S = _scaled_sign(_with_damping_row(table.constant, rows), factors, xp)
@@ -462,12 +633,40 @@ def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, p
         d_row = d_row * _sign_column(factors)
         d_gain = xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
     d_alpha = xp.sum(2.0 * xp.sum(d_W[DAMPING] * d_row, axis=0) - d_W[DAMPING, DAMPING] * d_row[DAMPING])
-    return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain)
+    return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain, xp.zeros(()))
 
 
-def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp, gain=1.0):
-    """log p(y | alpha, rho, phi, sigma, kappa) with every theta_j and mu integrated out (scaled
-    units); gain is the payload's friction gain kappa (friction_factors).
+def _extended_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain, deviation):
+    """collapsed_gradient with each test's deviation coefficient integrated out."""
+    S, (slope_d, slope_deviation) = extended_lag_sums(table, alpha, xp, gain, with_slope=True)
+    noise = _noise_sd(table, sigma, xp)
+    W = _lagged(S, phi)
+    reduced, extra, parts = absorb_deviation(W, noise, deviation, xp)
+    value, (d_reduced, d_noise, d_rho, d_prior_mean, d_prior_sd) = marginal_gradient(
+        reduced, table.n_pairs, noise, rho, prior_mean, prior_sd, xp)
+    d_W, d_noise_extra, d_deviation = absorb_deviation_gradient(d_reduced, parts, noise, deviation, xp)
+    d_noise = d_noise + d_noise_extra
+    d_phi = xp.sum(d_W * (2.0 * phi * S[2] - S[1]), axis=(0, 1))
+    # sum_ab G_ab dW_ab/dalpha over rows and columns DAMPING and DEVIATION, G symmetric: each row
+    # once and its column once, the diagonal entry once (the (d, d') pair sits in row d only)
+    moved_d, moved_deviation = _lagged(slope_d, phi), _lagged(slope_deviation, phi)
+    d_alpha = xp.sum(2.0 * xp.sum(d_W[DAMPING] * moved_d, axis=0) - d_W[DAMPING, DAMPING] * moved_d[DAMPING]
+                     + 2.0 * xp.sum(d_W[DEVIATION] * moved_deviation, axis=0)
+                     - d_W[DEVIATION, DEVIATION] * moved_deviation[DEVIATION])
+    factors = friction_factors(table, gain, xp)
+    if factors is None:
+        d_gain = xp.zeros(())
+    else:
+        d_gain = xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
+    return value + xp.sum(extra), (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain,
+                                   d_deviation)
+
+
+def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp=jnp, gain=1.0,
+                             deviation=None):
+    """log p(y | alpha, rho, phi, sigma, kappa, rho_d) with every theta_j and mu integrated out
+    (scaled units); gain is the payload's friction gain kappa (friction_factors), deviation the
+    spread rho_d of each test's deviation coefficient (DEVIATION; None: every test has alpha).
 
     Under JAX its derivative is collapsed_gradient's closed form rather than reverse-mode
     differentiation of the factorisations (see marginal_gradient for why); the moment table
@@ -475,27 +674,34 @@ def collapsed_log_likelihood(table: MomentTable, alpha, rho, phi, sigma, prior_m
     if xp is jnp:
         # without loads the gain's scaling is left out of the compiled program altogether
         with_loads = table.load_share is not None
-        static = (table.alpha_start, table.alpha_step, table.noise_floor, with_loads)
+        with_deviation = deviation is not None
+        static = (table.alpha_start, table.alpha_step, table.noise_floor, with_loads, with_deviation)
         load_share = table.load_share if with_loads else jnp.zeros_like(table.n_pairs)
         return _collapsed_jax(static, (table.constant, table.cross, table.gram, table.n_pairs, load_share),
-                              alpha, rho, phi, sigma, prior_mean, prior_sd, jnp.asarray(gain, dtype=float))
-    return _collapsed_value(table, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain)
+                              alpha, rho, phi, sigma, prior_mean, prior_sd, jnp.asarray(gain, dtype=float),
+                              jnp.asarray(deviation if with_deviation else 0.0, dtype=float))
+    return _collapsed_value(table, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain, deviation)
 
 
 def _table(static, arrays):
     constant, cross, gram, n_pairs, load_share = arrays
-    *numbers, with_loads = static
+    *numbers, with_loads, _ = static
     return MomentTable(constant, cross, gram, n_pairs, *numbers, load_share if with_loads else None)
 
 
+def _deviation(static, deviation):
+    return deviation if static[-1] else None
+
+
 @partial(jax.custom_vjp, nondiff_argnums=(0,))
-def _collapsed_jax(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd, gain):
-    return _collapsed_value(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd, jnp, gain)
+def _collapsed_jax(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd, gain, deviation):
+    return _collapsed_value(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd, jnp, gain,
+                            _deviation(static, deviation))
 
 
-def _collapsed_jax_forward(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd, gain):
+def _collapsed_jax_forward(static, arrays, alpha, rho, phi, sigma, prior_mean, prior_sd, gain, deviation):
     value, gradient = collapsed_gradient(_table(static, arrays), alpha, rho, phi, sigma, prior_mean, prior_sd,
-                                         jnp, gain)
+                                         jnp, gain, _deviation(static, deviation))
     return value, (gradient, arrays)
 
 
@@ -509,7 +715,8 @@ _collapsed_jax.defvjp(_collapsed_jax_forward, _collapsed_jax_backward)
 
 
 def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
-                      prior_mean, prior_sd, xp=jnp, gain=1.0, ignored_spread=None, normal_ignored=None):
+                      prior_mean, prior_sd, xp=jnp, gain=1.0, ignored_spread=None, normal_ignored=None,
+                      deviation=None):
     """An exact draw of mu (4,) and every theta_j (J, 4) given the sampled parameters, from
     standard normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
     log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units).
@@ -519,7 +726,9 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     (draws, J, 4) and the log-likelihood (draws, J).
 
     theta_j's Coulomb coefficient is that of test j's column s_j L_j filter(sign v)
-    (friction_factors): the empty table's friction as the test saw it.
+    (friction_factors): the empty table's friction as the test saw it. With deviation (rho_d,
+    one per draw) each test's deviation coefficient is integrated out (absorb_deviation): the
+    draws of theta and the log-likelihood are those marginal over it.
 
     ignored_spread (4,) (floats, zeros for none) and normal_ignored (4, [draws,] J): a shared
     coefficient k (rho_k = 0) whose tests may in truth differ by d_jk ~ N(0, (s_k mu_k)^2).
@@ -527,7 +736,7 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     H_j = (I + A T)^-1 A_j), so mu gains sum_j Q^-1 H_j e_k s_k |mu_k| z_jk: the shared fit's
     population value with the spread it left out. Tests that pin coefficient k dominate both
     its value and this term."""
-    terms = _terms(table, alpha, rho, phi, sigma, xp, gain)
+    terms = _terms(table, alpha, rho, phi, sigma, xp, gain, deviation)
     Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
     Q_chol = sl.cholesky(Q, xp)
     # mu = Q^-1 r + L^-T z has covariance Q^-1
@@ -551,3 +760,25 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     quadratic = xp.sum(per_test_mu[:, None] * terms.H * per_test_mu[None, :], axis=(0, 1))
     per_test = terms.c + xp.sum(terms.h * per_test_mu, axis=0) - 0.5 * quadratic
     return xp.moveaxis(mu, 0, -1), xp.moveaxis(theta, 0, -1), per_test
+
+
+def draw_deviations(normal, table: MomentTable, alpha, theta, phi, sigma, deviation, xp=np, gain=1.0):
+    """Each test's own exponent alpha + delta_j for draws of theta (draws, J, 4) from
+    draw_coefficients(..., deviation=deviation), from standard normal deviates normal
+    (draws, J); alpha and deviation (draws,), phi and sigma (draws, J). Returns (draws, J).
+
+    Given theta_j, the deviation coefficient c_j = Ce_j delta_j has the Gaussian conditional
+    (absorb_deviation's q, r, w of the whitened extended moments, s the noise sd)
+
+        c_j | theta_j, y ~ N((q_y - q_x' theta_j) / r, s^2 / r),
+
+    q_y and q_x the entries of q for y and the four coefficients, so (theta_j, c_j) is a draw
+    of their joint posterior; delta_j = c_j / Ce_j."""
+    extended = _lagged(extended_lag_sums(table, alpha, xp, gain), phi)
+    noise = _noise_sd(table, sigma, xp)
+    spread = xp.asarray(deviation)[..., None]
+    _, _, (q, r, _) = absorb_deviation(extended, noise, spread, xp)
+    coefficients = xp.moveaxis(theta, -1, 0)  # (4, draws, J)
+    mean = (q[0] - xp.sum(q[1:] * coefficients, axis=0)) / r
+    c = mean + noise / xp.sqrt(r) * normal
+    return xp.asarray(alpha)[..., None] + c / coefficients[2]

@@ -9,10 +9,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bayes_sst.inference._priors import GAIN_SITE, Priors, make_priors, payload_gain_identifiable
+from bayes_sst.inference._priors import ALPHA_SPREAD_SITE, GAIN_SITE, Priors, make_priors, payload_gain_identifiable
 from bayes_sst.inference._summary import (ESS_LIMIT, IMPLAUSIBLE_MASS_SPREAD, RHAT_LIMIT, largest_chain_spread,
                                          short_of_limits)
-from bayes_sst.inference._statistics import LaggedMoments, lagged_moments
+from bayes_sst.inference._statistics import LaggedMoments, lagged_moments, pooled_damping
 from bayes_sst.io import Series
 from bayes_sst.signals import PreparedTest, SignalOptions, prepare_series
 
@@ -78,9 +78,11 @@ def _say(progress: Callable[[str], None] | None, message: str):
         progress(message)
 
 
-def _initial_values(moments: LaggedMoments, alpha: float, with_gain: bool = False):
+def _initial_values(moments: LaggedMoments, alpha: float, with_gain: bool = False,
+                    alpha_spread: float | None = None):
     """Per-test least-squares start for sigma and phi at a plausible alpha (scaled units); the
-    payload's friction gain at 1 (the table description's physics) where it is sampled."""
+    payload's friction gain at 1 (the table description's physics) where it is sampled, the
+    exponent's between-test sd at alpha_spread where it is."""
     import jax.numpy as jnp
 
     grid = moments.alpha_grid
@@ -104,6 +106,8 @@ def _initial_values(moments: LaggedMoments, alpha: float, with_gain: bool = Fals
         "phi": jnp.asarray(phis),
         "sigma": jnp.asarray(sigmas),
     }
+    if alpha_spread is not None:
+        values[ALPHA_SPREAD_SITE] = jnp.asarray(alpha_spread)
     if with_gain:
         values[GAIN_SITE] = jnp.asarray(1.0)
     return values
@@ -118,7 +122,7 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     is known to ~0.01. Asymptotic scales fix that:
 
         sd(log sigma_j) ~ 1/sqrt(2 n_j),   sd(phi_j) ~ sqrt(max(1 - phi_j^2, 2/n_j)/n_j),
-        sd(log rho_k) ~ 1/sqrt(2 J) + 0.25 (capped at the prior's 1),
+        sd(log rho_k) ~ 1/sqrt(2 J) + 0.25 (capped at the prior's 1), and so sd(log tau),
         sd(kappa) ~ gain_sd (the payload's friction gain, where it is sampled),
 
     mapped through the interval transforms: for x = low + (high - low)*sigmoid(z),
@@ -139,6 +143,9 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     sd_alpha = alpha_sd * (priors.alpha_high - priors.alpha_low) / ((alpha - priors.alpha_low) * (priors.alpha_high - alpha))
     sd_log_spread = np.minimum(priors.spread_prior()[1], 0.25 + 1.0 / np.sqrt(2.0 * moments.n_tests))
     global_variances = np.concatenate([[sd_alpha**2], sd_log_spread**2])
+    if ALPHA_SPREAD_SITE in start:
+        sd_log_tau = min(priors.alpha_spread[1], 0.25 + 1.0 / np.sqrt(2.0 * moments.n_tests))
+        global_variances = np.append(global_variances, sd_log_tau**2)
     if GAIN_SITE in start:
         low, high = priors.payload_friction_gain[2:]
         gain = float(np.clip(start[GAIN_SITE], low + 0.05 * (high - low), high - 0.05 * (high - low)))
@@ -160,11 +167,15 @@ def _global_key(inverse_mass: dict) -> tuple[str, ...]:
 
 
 def _split_global(vector, block) -> dict:
-    """A vector over the dense block's coordinates as {site: part} (alpha and the gain scalars)."""
+    """A vector over the dense block's coordinates as {site: part} (alpha, the exponent's spread
+    and the gain scalars)."""
     vector = np.asarray(vector, dtype=float)
     parts = {"alpha": vector[0], "spread": vector[1:5]}
-    if GAIN_SITE in block:
-        parts[GAIN_SITE] = vector[5]
+    position = 5
+    for name in (ALPHA_SPREAD_SITE, GAIN_SITE):
+        if name in block:
+            parts[name] = vector[position]
+            position += 1
     return parts
 
 
@@ -338,8 +349,11 @@ def fit(
             noise_log_sd=priors.noise_log_sd,
             varying=jnp.asarray(priors.varying_mask()),
             gain=tuple(float(x) for x in priors.payload_friction_gain) if with_gain else None,
+            alpha_spread=None if priors.alpha_spread is None else tuple(float(x) for x in priors.alpha_spread),
+            deviation_scale=pooled_damping(moments)[1],
         )
-        start_values = _initial_values(moments, priors.alpha_mean, with_gain)
+        start_values = _initial_values(moments, priors.alpha_mean, with_gain,
+                                       None if priors.alpha_spread is None else float(priors.alpha_spread[0]))
         inverse_mass = _initial_inverse_mass(moments, start_values, priors)
         # the chains start around the posterior mode (_dispersed_starts), with potentials and
         # gradients computed outside the compiled sampler (see bayes_sst.inference._model), and

@@ -12,7 +12,7 @@ import numpyro
 import numpyro.distributions as dist
 
 from bayes_sst.inference._collapsed import MomentTable, collapsed_gradient, collapsed_log_likelihood
-from bayes_sst.inference._priors import GAIN_SITE
+from bayes_sst.inference._priors import ALPHA_SPREAD_SITE, GAIN_SITE
 
 PHI_BOUND = 0.999
 
@@ -34,15 +34,23 @@ class ScaledPriors(NamedTuple):
     # (mean, sd, low, high) of the truncated normal prior of the payload's friction gain kappa
     # (see bayes_sst.inference._collapsed.friction_factors); None: kappa = 1, not sampled
     gain: tuple[float, float, float, float] | None = None
+    # (median, log sd) of the log-normal prior of tau, the between-test sd of the damping
+    # exponent (see _collapsed.DEVIATION); None: every test has the population's alpha
+    alpha_spread: tuple[float, float] | None = None
+    # rho_d = tau * deviation_scale: |Ce| in scaled units, the factor between a test's deviation
+    # coefficient c_j = Ce_j delta_j and its exponent's deviation delta_j
+    deviation_scale: float = 1.0
 
 
 def table_force_model(table: MomentTable, priors: ScaledPriors):
     """Hierarchical force model with AR(1) residuals, theta_j and mu integrated out.
 
-    Sites: alpha (damping exponent), spread (4 between-test sds, relative), phi and sigma
-    (per test AR(1) coefficient and innovation sd, scaled units), and where the series has
-    tests under different payloads, payload_friction_gain (kappa, see
-    _collapsed.friction_factors). See _collapsed.py.
+    Sites: alpha (damping exponent), spread (4 between-test sds, relative), alpha_spread (tau,
+    the between-test sd of the exponent, where priors.alpha_spread is set; each test's own
+    deviation is integrated out, see _collapsed.DEVIATION), phi and sigma (per test AR(1)
+    coefficient and innovation sd, scaled units), and where the series has tests under
+    different payloads, payload_friction_gain (kappa, see _collapsed.friction_factors). See
+    _collapsed.py.
     """
     n_tests = table.n_pairs.shape[0]
     alpha = numpyro.sample(
@@ -56,13 +64,17 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
     spread_loc = jnp.broadcast_to(jnp.log(jnp.asarray(priors.spread_median)), (4,))
     spread_scale = jnp.broadcast_to(jnp.asarray(priors.spread_log_sd), (4,))
     spread = numpyro.sample("spread", dist.LogNormal(spread_loc, spread_scale).to_event(1))
+    deviation = None
+    if priors.alpha_spread is not None:
+        median, log_sd = priors.alpha_spread
+        deviation = numpyro.sample(ALPHA_SPREAD_SITE, dist.LogNormal(math.log(median), log_sd)) * priors.deviation_scale
     with numpyro.plate("test", n_tests):
         phi = numpyro.sample("phi", dist.Uniform(-PHI_BOUND, PHI_BOUND))
         sigma = numpyro.sample("sigma", dist.LogNormal(priors.noise_loc, priors.noise_log_sd))
     numpyro.factor(
         "force",
         collapsed_log_likelihood(table, alpha, spread * priors.varying, phi, sigma, priors.mean, priors.sd,
-                                 gain=gain),
+                                 gain=gain, deviation=deviation),
     )
 
 
@@ -107,6 +119,8 @@ def unconstrained_start(values: dict, priors: ScaledPriors) -> dict:
     }
     if priors.gain is not None:
         z[GAIN_SITE] = _to_interval(values[GAIN_SITE], *priors.gain[2:])
+    if priors.alpha_spread is not None:
+        z[ALPHA_SPREAD_SITE] = np.log(float(values[ALPHA_SPREAD_SITE]))
     return z
 
 
@@ -120,6 +134,8 @@ def constrained_sites(z: dict, priors: ScaledPriors) -> dict:
     }
     if priors.gain is not None:
         sites[GAIN_SITE] = _interval(z[GAIN_SITE], *priors.gain[2:])[0]
+    if priors.alpha_spread is not None:
+        sites[ALPHA_SPREAD_SITE] = np.exp(float(z[ALPHA_SPREAD_SITE]))
     return sites
 
 
@@ -159,7 +175,14 @@ def _sites_and_log_prior(z: dict, priors: ScaledPriors):
     )
     jacobian = (float(log_jacobian) + float(gain_jacobian) + np.sum(z["spread"]) + np.sum(phi_jacobian)
                 + np.sum(z["sigma"]))
-    sites = {"alpha": float(alpha), "phi": phi, "spread": spread, "sigma": sigma, "gain": float(gain)}
+    sites = {"alpha": float(alpha), "phi": phi, "spread": spread, "sigma": sigma, "gain": float(gain),
+             "deviation": None}
+    if priors.alpha_spread is not None:
+        log_tau = float(z[ALPHA_SPREAD_SITE])
+        tau = math.exp(log_tau)
+        log_prior += float(_log_normal_density(tau, math.log(priors.alpha_spread[0]), priors.alpha_spread[1]))
+        jacobian += log_tau
+        sites["deviation"] = tau * priors.deviation_scale
     return sites, float(log_prior + jacobian)
 
 
@@ -179,7 +202,8 @@ def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float
     potential_and_gradient evaluates the likelihood once for both.
     """
     sites, log_prior = _sites_and_log_prior(z, priors)
-    likelihood = collapsed_log_likelihood(table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"])
+    likelihood = collapsed_log_likelihood(table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"],
+                                          deviation=sites["deviation"])
     return float(-(log_prior + likelihood))
 
 
@@ -193,8 +217,8 @@ def potential_and_gradient(z: dict, table: MomentTable, priors: ScaledPriors) ->
     Jacobian together give d/dz = -(z - loc)/scale^2.
     """
     sites, log_prior = _sites_and_log_prior(z, priors)
-    likelihood, (d_alpha, d_rho, d_phi, d_sigma, _, _, d_gain) = collapsed_gradient(
-        table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"])
+    likelihood, (d_alpha, d_rho, d_phi, d_sigma, _, _, d_gain, d_deviation) = collapsed_gradient(
+        table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"], deviation=sites["deviation"])
     phi_share = 1.0 / (1.0 + np.exp(-np.asarray(z["phi"], dtype=float)))  # s(z) of phi's transform
     z_spread, z_sigma = np.asarray(z["spread"], dtype=float), np.asarray(z["sigma"], dtype=float)
     spread_loc = np.log(np.asarray(priors.spread_median, dtype=float))
@@ -209,6 +233,10 @@ def potential_and_gradient(z: dict, table: MomentTable, priors: ScaledPriors) ->
     }
     if priors.gain is not None:
         log_density[GAIN_SITE] = _interval_site_gradient(z[GAIN_SITE], float(d_gain), *priors.gain)
+    if priors.alpha_spread is not None:
+        median, log_sd = priors.alpha_spread
+        log_density[ALPHA_SPREAD_SITE] = (float(d_deviation) * sites["deviation"]
+                                          - (float(z[ALPHA_SPREAD_SITE]) - math.log(median)) / log_sd ** 2)
     gradient = {name: -np.asarray(value, dtype=float).reshape(np.shape(z[name])) for name, value in log_density.items()}
     return float(-(log_prior + likelihood)), gradient
 
@@ -268,15 +296,16 @@ def posterior_mode(z: dict, table: MomentTable, priors: ScaledPriors, scales: di
 
 def global_sites(sites) -> tuple[str, ...]:
     """The sites shared by all tests among `sites` (names, or a dict keyed by them), in the order
-    of the sampler's dense mass block: alpha, the four spreads, and the payload's friction gain
-    where it is sampled."""
-    return ("alpha", "spread") + ((GAIN_SITE,) if GAIN_SITE in sites else ())
+    of the sampler's dense mass block: alpha, the four spreads, the exponent's between-test sd
+    and the payload's friction gain where they are sampled."""
+    return (("alpha", "spread") + ((ALPHA_SPREAD_SITE,) if ALPHA_SPREAD_SITE in sites else ())
+            + ((GAIN_SITE,) if GAIN_SITE in sites else ()))
 
 
 def global_curvature(z: dict, table: MomentTable, priors: ScaledPriors, step: float = 1e-5) -> np.ndarray:
-    """d2U/dz dz' over the global sites (global_sites: alpha, the four spreads, the gain) at z,
-    the per-test sites held: central differences of potential_gradient, symmetrised, (5, 5) or
-    (6, 6).
+    """d2U/dz dz' over the global sites (global_sites: alpha, the four spreads, the exponent's
+    spread, the gain) at z, the per-test sites held: central differences of potential_gradient,
+    symmetrised, (5, 5) to (7, 7).
 
     Its inverse is the conditional posterior covariance of the global sites at a mode, a
     slight underestimate of their marginal covariance (the per-test sites are nearly

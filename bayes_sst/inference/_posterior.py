@@ -21,8 +21,8 @@ def _padded(arrays, fill=np.nan):
 
 def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings, series, signals=None):
     """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
-    from bayes_sst.inference._collapsed import draw_coefficients, friction_factors, moment_table
-    from bayes_sst.inference._priors import GAIN_SITE
+    from bayes_sst.inference._collapsed import draw_coefficients, draw_deviations, friction_factors, moment_table
+    from bayes_sst.inference._priors import ALPHA_SPREAD_SITE, GAIN_SITE
 
     chains, draws = samples["alpha"].shape
     flat = {name: np.reshape(np.asarray(value), (chains * draws,) + value.shape[2:]) for name, value in samples.items()}
@@ -33,6 +33,8 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     if not with_gain:
         host_table = host_table._replace(load_share=None)
     gain = flat[GAIN_SITE] if with_gain else np.ones(n_draws)
+    with_deviation = ALPHA_SPREAD_SITE in samples
+    deviation = flat[ALPHA_SPREAD_SITE] * scaled.deviation_scale if with_deviation else None
     prior_mean, prior_sd = np.asarray(scaled.mean), np.asarray(scaled.sd)
     spread = np.asarray(samples["spread"]) * np.asarray(scaled.varying)  # a shared coefficient's spread is 0
     flat["spread"] = np.reshape(spread, (chains * draws, 4))
@@ -42,6 +44,9 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     ignored = priors.ignored_spread_vector()
     # drawn after the others, so that a fit without an ignored spread keeps its draws
     normal_ignored = rng.standard_normal((4, n_draws, n_tests)) if ignored is not None else None
+    # drawn last, so that a fit without the exponent's spread keeps its draws
+    normal_deviation = rng.standard_normal((n_draws, n_tests)) if with_deviation else None
+    exponents = np.empty((n_draws, n_tests))
     mu = np.empty((n_draws, 4))
     theta = np.empty((n_draws, n_tests, 4))
     per_test = np.empty((n_draws, n_tests))
@@ -53,7 +58,11 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
             normal_mu[part].T, normal_theta[part], host_table, flat["alpha"][part], flat["spread"][part].T,
             flat["phi"][part], flat["sigma"][part], prior_mean, prior_sd, xp=np, gain=gain[part],
             ignored_spread=ignored, normal_ignored=None if ignored is None else normal_ignored[:, part],
+            deviation=None if deviation is None else deviation[part],
         )
+        if with_deviation:
+            exponents[part] = draw_deviations(normal_deviation[part], host_table, flat["alpha"][part], theta[part],
+                                              flat["phi"][part], flat["sigma"][part], deviation[part], np, gain[part])
     if with_gain:
         # each test's Coulomb coefficient as that of its column friction_load*filter(sign v),
         # the column the report, the predictive checks and the diagnosis rebuild
@@ -74,6 +83,9 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     posterior["alpha"] = (("chain", "draw"), np.asarray(samples["alpha"]))
     if with_gain:
         posterior[GAIN_SITE] = (("chain", "draw"), np.asarray(samples[GAIN_SITE]))
+    if with_deviation:
+        posterior["alpha_between_test_sd"] = (("chain", "draw"), np.asarray(samples[ALPHA_SPREAD_SITE]))
+        posterior["alpha_test"] = (("chain", "draw", "test"), shaped(exponents))
     posterior["between_test_sd"] = (
         ("chain", "draw", "coefficient"),
         spread * scale,
@@ -84,13 +96,18 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     posterior["sigma"] = (("chain", "draw", "test"), np.asarray(samples["sigma"]) * moments.force_scale)
     units = {
         "Me": "kg", "Ke": "N/m", "Ce": "N/(m/s)^alpha", "Fmu": "N", "alpha": "1",
-        "between_test_sd": "SI units of each coefficient", "sigma": "N", "phi": "1",
+        "between_test_sd": "SI units of each coefficient", "sigma": "N", "phi": "1", "alpha_between_test_sd": "1",
+        "alpha_test": "1",
         GAIN_SITE: "1",
     }
     post_ds = xr.Dataset(posterior, coords={k: coords[k] for k in ("chain", "draw", "test", "coefficient")})
     for name, unit in units.items():
         if name in post_ds:
             post_ds[name].attrs["units"] = unit
+    if with_deviation:
+        post_ds["alpha_between_test_sd"].attrs["meaning"] = (
+            "between-test sd of the damping exponent: test j's damping is Ce_j |v|^(alpha + delta_j) sign v "
+            "with delta_j ~ N(0, sd^2), to first order in delta_j, each delta_j integrated out")
     if with_gain:
         post_ds[GAIN_SITE].attrs["meaning"] = (
             "share of the payload's friction increase predicted by the table description that is real: "

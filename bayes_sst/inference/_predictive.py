@@ -5,7 +5,8 @@ For test j and posterior draw s the replicated force at the kept samples is
     F_rep = m_payload*a + X(alpha_s) . theta_js + e,   e_t = phi_js*e_(t-1) + w_t,  w ~ N(0, sigma_js^2)
 
 with X = (a, u, filter(|v|^alpha sign v), filter(sign v)) exactly as in
-bayes_sst.inference._statistics, and e started from its stationary law sd sigma/sqrt(1-phi^2).
+bayes_sst.inference._statistics (at test j's own exponent alpha_js where the fit let it vary
+between tests), and e started from its stationary law sd sigma/sqrt(1-phi^2).
 """
 
 from __future__ import annotations
@@ -154,10 +155,13 @@ def posterior_predictive(tree, prepared: list[PreparedTest], *, n_draws: int = 2
     phi = _flat(tree, "phi")[pick]
     sigma = _flat(tree, "sigma")[pick]
     alpha = alpha[pick]
+    # a fit with the exponent varying between tests (fit --per-test-alpha) has each test's own
+    exponents = _flat(tree, "alpha_test")[pick] if "alpha_test" in tree["posterior"] else None
     out = []
     for j, test in enumerate(prepared):
+        test_alpha = alpha if exponents is None else exponents[:, j]
         # one filtering pass for all draws' alphas: the damping column is the only one that moves
-        damping = test.regressor(damping_columns(alpha))[: len(alpha)]  # (d, n)
+        damping = test.regressor(damping_columns(test_alpha))[: len(test_alpha)]  # (d, n)
         th = theta[:, j]
         mean = (
             test.payload_kg * test.a

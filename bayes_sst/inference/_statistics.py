@@ -300,3 +300,19 @@ def pooled_mass(moments, alpha_grid, coefficient_scale) -> float:
     theta = np.linalg.lstsq(total[1:, 1:], total[1:, 0], rcond=1e-12)[0]
     mass = float(theta[0] * coefficient_scale[0])
     return mass if np.isfinite(mass) and mass > 0.0 else float(coefficient_scale[0])
+
+
+def pooled_damping(lagged: LaggedMoments) -> tuple[float, float]:
+    """(alpha, |Ce| in scaled units) by least squares on all tests' lag-0 moments together, one
+    coefficient set for the series, at the grid node whose residual is least: rough values, the
+    scale that turns a test's deviation coefficient into its exponent's deviation
+    (_collapsed.DEVIATION). |Ce| falls back to 1 (the prior centre) where the fit gives none."""
+    total = np.sum(np.asarray(lagged.moments)[:, :, 0], axis=0)  # (G, 5, 5)
+    best, found = np.inf, (float("nan"), 1.0)
+    for g, m in enumerate(total):
+        theta = np.linalg.lstsq(m[1:, 1:], m[1:, 0], rcond=1e-12)[0]
+        residual = float(m[0, 0] - m[1:, 0] @ theta)
+        if np.isfinite(residual) and residual < best:
+            best, found = residual, (float(lagged.alpha_grid[g]), float(abs(theta[DAMPING_COLUMN])))
+    alpha, scale = found
+    return alpha, scale if np.isfinite(scale) and scale > 0.0 else 1.0

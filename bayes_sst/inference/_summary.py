@@ -9,6 +9,8 @@ import numpy as np
 from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.inference._mixing import rank_rhat_and_bulk_ess
 from bayes_sst.inference._priors import GAIN_SITE
+
+ALPHA_SPREAD = "alpha_between_test_sd"  # the posterior's name of the exponent's between-test sd
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 
@@ -117,7 +119,7 @@ def _mixing(tree) -> dict:
     # a shared coefficient's between-test sd is identically 0: no R-hat or ESS to check
     between = posterior["between_test_sd"]
     varying = [k for k in range(between.sizes["coefficient"]) if np.any(between.isel(coefficient=k).values != 0.0)]
-    checked = posterior[list(POPULATION) + [name for name in (GAIN_SITE,) if name in posterior]]
+    checked = posterior[list(POPULATION) + [name for name in (GAIN_SITE, ALPHA_SPREAD) if name in posterior]]
     checked = checked.assign(between_test_sd=between.isel(coefficient=varying))
     r_hat = rhat(checked)
     ess_bulk = ess(checked, method="bulk")
@@ -290,6 +292,8 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
         summary["broadband_tests_not_fitted"] = broadband
     if GAIN_SITE in posterior:
         summary[GAIN_SITE] = described(GAIN_SITE)
+    if ALPHA_SPREAD in posterior:
+        summary[ALPHA_SPREAD] = described(ALPHA_SPREAD)
     priors = _tree_priors(tree)
     if priors is not None:
         summary["priors"] = priors
@@ -402,6 +406,10 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
         lines.append(
             f"  {name:<5}{100 * s['relative_sd_mean']:6.2f} %  [{100 * s['relative_sd_q05']:.2f}, {100 * s['relative_sd_q95']:.2f}] %"
         )
+    exponent = summary.get(ALPHA_SPREAD)
+    if exponent is not None:
+        lines.append(f"  alpha {exponent['mean']:6.3f}    [{exponent['q05']:.3f}, {exponent['q95']:.3f}]    "
+                     "(sd of the exponent itself)")
     gain = summary.get(GAIN_SITE)
     if gain is not None:
         lines.append("")

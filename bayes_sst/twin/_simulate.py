@@ -204,6 +204,7 @@ def simulate(
     internal_rate_hz: float = DEFAULT_INTERNAL_RATE_HZ,
     record_velocity: bool = False,
     broadband_sample_rate_hz: float = DEFAULT_BROADBAND_RATE_HZ,
+    alpha_spread: float = 0.0,
 ) -> Series:
     """A simulated test series of a table with known truth.
 
@@ -217,6 +218,9 @@ def simulate(
         stroke or velocity limit (for broadband tests also the acceleration limit) are refused.
     spread : relative sd of the test-to-test lognormal spread of Me, Ke, Ce, Fmu; one float
         for all four or a dict per parameter; None or 0 for none.
+    alpha_spread : sd of the damping exponent's test-to-test spread, absolute: test i's
+        exponent is alpha + alpha_spread*z_i, z_i ~ N(0, 1) (a damping law that is a power
+        law only approximately, read over different speed ranges); 0 for none.
     noise : SensorNoise (or a dict of its fields); None for the realistic defaults; 'quiet'
         for none, so the recorded signals are exactly the simulated ones.
     n_cycles, ramp_cycles, rest_s, corner_rounding : shape of each command (see _command.py).
@@ -256,6 +260,11 @@ def simulate(
     # Spawned after the first two, so periodic tests keep the streams they always had.
     (command_seed,) = seeds.spawn(1)
     factors = draw_factors(np.random.default_rng(spread_seed), len(items), sds)
+    if not (math.isfinite(alpha_spread) and alpha_spread >= 0.0):
+        raise ValueError(f"alpha_spread must be a non-negative sd, got {alpha_spread!r}")
+    # a stream of its own, spawned last, so that every other draw stays what it was
+    (exponent_seed,) = seeds.spawn(1)
+    exponent_shift = alpha_spread * np.random.default_rng(exponent_seed).standard_normal(len(items))
     noise_rngs = [np.random.default_rng(s) for s in noise_seed.spawn(len(items))]
     command_rngs = [np.random.default_rng(s) for s in command_seed.spawn(len(items))]
 
@@ -279,7 +288,8 @@ def simulate(
         test_factors = {p: float(f[i]) for p, f in factors.items()}
         test_factors = _drifted(truth, test_factors, i / max(1, len(items) - 1))
         test_factor_list.append(test_factors)
-        decks.append(deck_of_test(truth, test_factors, item.payload_kg))
+        deck = deck_of_test(truth, test_factors, item.payload_kg)
+        decks.append(deck._replace(alpha=deck.alpha + float(exponent_shift[i])) if alpha_spread > 0.0 else deck)
 
     # One batched integration per output rate (tests of one batch share the step and k).
     sim: dict[str, list] = {name: [None] * len(items) for name in ("u", "v", "a", "F")}
