@@ -102,7 +102,7 @@ def _peak_rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
 
 
-def worker_ours(series_file: str, result_file: str):
+def worker_ours(series_file: str, result_file: str, per_test_alpha: bool = False):
     """Two fits (cold, warm) of one series in this process; JSON to result_file."""
     import jax.monitoring
 
@@ -120,12 +120,19 @@ def worker_ours(series_file: str, result_file: str):
 
     with open(series_file, "rb") as fh:
         series = pickle.load(fh)
+    prior = "generic"
+    if per_test_alpha:
+        from dataclasses import replace
+
+        from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
+
+        prior = replace(make_priors("generic", series.table), alpha_spread=PER_TEST_ALPHA_PRIOR)
     rss_before = _peak_rss_mib()
     out = {"implementation": "bayes_sst", "cache_dir": os.environ.get("BAYES_SST_CACHE"), "runs": {}}
     for label in ("cold", "warm"):
         events.clear()
         start = time.perf_counter()
-        result = fit(series)
+        result = fit(series, prior=prior)
         wall = time.perf_counter() - start
         summary = summarize(result.tree)
         m = mcse(result.tree, var_names=list(POPULATION))
@@ -299,6 +306,8 @@ def main():
                         help="seconds of peer sampling per configuration; a run predicted to exceed "
                              "it is skipped, and the worker is stopped at 1.3x this")
     parser.add_argument("--out", default=str(HERE / "results" / "fit_benchmark.json"))
+    parser.add_argument("--per-test-alpha", action="store_true",
+                        help="fit with the damping exponent varying between tests (fit --per-test-alpha)")
     parser.add_argument("--worker", choices=("ours", "peer"), help=argparse.SUPPRESS)
     parser.add_argument("--series-file", help=argparse.SUPPRESS)
     parser.add_argument("--result-file", help=argparse.SUPPRESS)
@@ -306,7 +315,7 @@ def main():
     runs = [tuple(int(x) for x in item.split(":")) for item in args.peer_runs.split(",")]
 
     if args.worker == "ours":
-        return worker_ours(args.series_file, args.result_file)
+        return worker_ours(args.series_file, args.result_file, args.per_test_alpha)
     if args.worker == "peer":
         return worker_peer(args.series_file, args.result_file, runs, args.peer_budget)
 
@@ -329,7 +338,8 @@ def main():
             env["BAYES_SST_CACHE"] = str(scratch / f"jax-cache-{n_tests}")  # empty: the first fit is cold
             res = {"config": config, "n_tests": n_tests, "n_recorded_samples": n_samples, "simulation_s": simulated}
             _log(f"== {config}: bayes_sst fit, cold then warm ...")
-            res["ours"] = _spawn(["--worker", "ours", "--series-file", str(series_file)], env,
+            res["ours"] = _spawn(["--worker", "ours", "--series-file", str(series_file)]
+                                 + (["--per-test-alpha"] if args.per_test_alpha else []), env,
                                  scratch / f"ours{n_tests}.json", None)
             if args.peer:
                 _log(f"== {config}: pymc + nutpie peer ...")
