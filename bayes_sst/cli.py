@@ -79,13 +79,9 @@ def _cmd_fit(args) -> int:
         options = replace(options, reversal_band=args.reversal_band, reversal_band_without_accelerometer=None)
     if args.reversal_speed is not None:
         options = replace(options, reversal_speed=args.reversal_speed)
-    priors = make_priors(args.prior, series.table)
+    priors = make_priors(args.prior, series.table, per_test_alpha=args.per_test_alpha)
     if args.shared:
         priors = replace(priors, shared=tuple(dict.fromkeys(args.shared)))
-    if args.per_test_alpha:
-        from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR
-
-        priors = replace(priors, alpha_spread=PER_TEST_ALPHA_PRIOR)
     result = fit(
         series,
         chains=args.chains,

@@ -120,13 +120,9 @@ def worker_ours(series_file: str, result_file: str, per_test_alpha: bool = False
 
     with open(series_file, "rb") as fh:
         series = pickle.load(fh)
-    prior = "generic"
-    if per_test_alpha:
-        from dataclasses import replace
+    from bayes_sst.inference._priors import make_priors
 
-        from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
-
-        prior = replace(make_priors("generic", series.table), alpha_spread=PER_TEST_ALPHA_PRIOR)
+    prior = make_priors("generic", series.table, per_test_alpha=per_test_alpha)
     rss_before = _peak_rss_mib()
     out = {"implementation": "bayes_sst", "cache_dir": os.environ.get("BAYES_SST_CACHE"), "runs": {}}
     for label in ("cold", "warm"):

@@ -24,7 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 from bayes_sst.inference import fit
-from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
+from bayes_sst.inference._priors import make_priors
 from bayes_sst.inference._summary import summarize
 from bayes_sst.signals import SignalOptions
 from bayes_sst.twin import default_plan, random_series
@@ -69,9 +69,9 @@ def main():
         started = time.perf_counter()
         series, truth = one_series(seed, args.payload_share)
         signals = SignalOptions(**overrides)
-        priors = make_priors("generic") if args.shared is None else replace(make_priors("generic"), shared=tuple(args.shared))
-        if args.per_test_alpha:
-            priors = replace(priors, alpha_spread=PER_TEST_ALPHA_PRIOR)
+        priors = make_priors("generic", per_test_alpha=args.per_test_alpha)
+        if args.shared is not None:
+            priors = replace(priors, shared=tuple(args.shared))
         result = fit(series, seed=seed, signals=signals, prior=priors)
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"]}

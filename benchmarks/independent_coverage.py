@@ -88,6 +88,7 @@ def main():
         from independent_generator import make_series
 
     from bayes_sst.inference import fit
+    from bayes_sst.inference._priors import make_priors
     from bayes_sst.inference._summary import summarize
     from bayes_sst.io import load_series
     from bayes_sst.signals import SignalOptions
@@ -103,13 +104,7 @@ def main():
         series = load_series(folder)
         if args.without_acceleration:
             series = without_motion_sensors(series)
-        prior = "generic"
-        if args.per_test_alpha:
-            from dataclasses import replace
-
-            from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
-
-            prior = replace(make_priors("generic", series.table), alpha_spread=PER_TEST_ALPHA_PRIOR)
+        prior = make_priors("generic", series.table, per_test_alpha=args.per_test_alpha)
         result = fit(series, seed=seed, signals=SignalOptions(**overrides), prior=prior)
         summary = summarize(result.tree)
         row = {"seed": seed, "seconds": time.perf_counter() - started, "converged": summary["converged"],

@@ -538,12 +538,12 @@ def test_a_per_test_exponent_is_recovered_and_keeps_its_spread_out_of_ce():
     between-test sd must contain the spread the twin drew, the population values their truth,
     and the per-test Ce must no longer carry the exponent's spread as the shared-exponent fit's
     does."""
-    from bayes_sst.inference._priors import PER_TEST_ALPHA_PRIOR, make_priors
+    from bayes_sst.inference._priors import make_priors
 
     series = simulate("sst-paper", seed=5, spread=0.02, alpha_spread=0.08)
     drawn = np.array([t.spec.extra["truth"]["alpha"] for t in series.periodic_tests])
     truth = series.extra["truth"]
-    per_test = fit(series, seed=1, prior=replace(make_priors("generic"), alpha_spread=PER_TEST_ALPHA_PRIOR))
+    per_test = fit(series, seed=1, prior=make_priors("generic", per_test_alpha=True))
     shared = fit(series, seed=1)
     summary, shared_summary = summarize(per_test.tree), summarize(shared.tree)
     assert summary["converged"]

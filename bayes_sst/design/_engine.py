@@ -44,7 +44,7 @@ from scipy.special import erfinv, ndtr
 
 from bayes_sst.inference import _smalllinalg as sl
 from bayes_sst.inference._collapsed import load_share, payload_friction_factor
-from bayes_sst.inference._priors import GAIN_SITE
+from bayes_sst.inference._priors import ALPHA_SPREAD_VARIABLE, GAIN_SITE
 from bayes_sst.inference._statistics import (
     ALPHA_MAX,
     ALPHA_MIN,
@@ -110,7 +110,7 @@ def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
     priors = json.loads(tree.attrs.get("priors", "{}") or "{}")
     if "centres" not in priors:
         raise ValueError("the run does not record its priors (posterior.nc attrs 'priors'); refit it with this version")
-    if "alpha_between_test_sd" in tree["posterior"]:
+    if ALPHA_SPREAD_VARIABLE in tree["posterior"]:
         # the engine's Gaussian pieces share the exponent between tests; with each test's own
         # deviation integrated out the run's intervals are wider, and the design would start
         # from (and predict) intervals narrower than the run's

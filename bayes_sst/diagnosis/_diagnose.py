@@ -730,6 +730,9 @@ def _rival_of_side_findings(series: Series, scorer: Scorer, base: ModelFit, star
     when three things hold together: the default view selects an effect without them; with that
     effect in their model no side view selects them any more; and the default view's data fit
     the effect better than them (the sum of the leave-one-test-out densities).
+
+    Also returns the side views' screenings with that effect in their model ({view: _side_view's
+    result}), which are the checks the default view's selection is then put to.
     """
     alone = _select(scorer, base, main_effects, floor, say, timings, "without_side_findings_")
     found, current = alone[0], alone[1]
@@ -738,20 +741,21 @@ def _rival_of_side_findings(series: Series, scorer: Scorer, base: ModelFit, star
     if not float(np.sum(current.elpd)) > float(np.sum(start.elpd)):
         return None
     terms = [(s.effect, s.setting) for s in found]
+    checks = {}
     for view, view_effects, options in side_specs:
         side = side_views.get(view)
         if not side or not side["selected"]:
             continue
-        check = _side_view(series, view_effects, options, f"{view}_rival", say, timings, terms,
-                           scorer=side_scorers[view])[0]
-        if check["selected"]:
+        checks[view] = _side_view(series, view_effects, options, f"{view}_check", say, timings, terms,
+                                  scorer=side_scorers[view])
+        if checks[view][0]["selected"]:
             return None
     say(f"{', '.join(s.effect.name for s in found)} explains what the side views found "
         f"({', '.join(n for v in side_views.values() if v for n in v['selected'])}) and fits better: kept instead")
     steps = alone[3]
     for step in steps:
         step["view"] = "default, without the side views' findings"
-    return found, current, alone[2], steps
+    return (found, current, alone[2], steps), checks
 
 
 def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions, view: str, say,
@@ -921,12 +925,13 @@ def diagnose(
     selected, current, ranking, steps = _select(scorer, start, main_effects, floor, say, timings)
     rival = _rival_of_side_findings(series, scorer, base, start, main_effects, floor, side_specs, side_views,
                                     side_scorers, say, timings) if given else None
+    side_checks: dict[str, tuple] = {}
     if rival is not None:
-        # the default view's own explanation wins: the side findings go in the check below; the
-        # screening with them given stays in the steps, as it was scored
+        # the default view's own explanation wins: the side findings go in the check below (whose
+        # screenings the rival made already); the screening with them given stays in the steps
         for step in steps:
             step["given"] = [e.name for e, _ in given] + step["given"]
-        selected, current, ranking, rival_steps = rival
+        (selected, current, ranking, rival_steps), side_checks = rival
         steps = steps + rival_steps
         given, start = [], base
     # the default view's candidates were scored with these side findings in the model
@@ -946,8 +951,8 @@ def diagnose(
             if not side:
                 continue
             t0 = time.perf_counter()
-            check, check_terms, check_figures, _ = _side_view(series, view_effects, options, f"{view}_check", say,
-                                                              timings, main_terms, scorer=side_scorers[view])
+            check, check_terms, check_figures, _ = side_checks.get(view) or _side_view(
+                series, view_effects, options, f"{view}_check", say, timings, main_terms, scorer=side_scorers[view])
             timings[f"{view}_view_check"] = time.perf_counter() - t0
             check_summary = {k: check[k] for k in ("selected", "rms_before", "rms_after", "noise_floor", "given")}
             side["check"] = check_summary

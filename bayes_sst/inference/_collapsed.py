@@ -176,13 +176,17 @@ class TestTerms(NamedTuple):
     B_inverse: jax.Array  # (4, 4, J)
 
 
+def _hermite_position(table: MomentTable, alpha, xp):
+    """Grid interval g of alpha and s = (alpha - alpha_g)/step, its place in it."""
+    position = (alpha - table.alpha_start) / table.alpha_step
+    g = xp.clip(xp.floor(position).astype(xp.int32), 0, table.cross.shape[0] - 1)
+    return g, position - g
+
+
 def hermite_weights(table: MomentTable, alpha, xp=jnp):
     """Grid interval g, the cubic-Hermite weights at alpha and their alpha-derivatives: with
     s = (alpha - alpha_g)/step, M(alpha) = h00 M_g + h10 step M'_g + h01 M_(g+1) + h11 step M'_(g+1)."""
-    n_cells = table.cross.shape[0]
-    position = (alpha - table.alpha_start) / table.alpha_step
-    g = xp.clip(xp.floor(position).astype(xp.int32), 0, n_cells - 1)
-    s = position - g
+    g, s = _hermite_position(table, alpha, xp)
     s2, s3 = s * s, s * s * s
     weights = xp.stack([2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2])
     slopes = xp.stack([6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, 6 * s - 6 * s2, 3 * s2 - 2 * s]) / table.alpha_step
@@ -201,16 +205,21 @@ def _trailing(x, ndim: int):
     return x.reshape(x.shape + (1,) * (ndim - x.ndim))
 
 
-def _with_damping_row(base, row):
-    """base (3, 5, 5, J) with row and column DAMPING set to row (3, 5, *batch), batch = (J,)
-    or (draws, J) (base's are zero, see MomentTable)."""
-    n_batch = row.ndim - 2
-    unit = np.zeros(5)
-    unit[DAMPING] = 1.0
-    e_row, e_col = _trailing(unit, 2 + n_batch), _trailing(unit[None], 2 + n_batch)
-    base = base.reshape(base.shape[:3] + (1,) * (n_batch - 1) + base.shape[3:])
-    return (base + e_row * row[:, None] + e_col * row[:, :, None]
-            - e_row * e_col * row[:, DAMPING][:, None, None])
+def _cell_contractions(table: MomentTable, g, many: bool, xp):
+    """The contractions of the basis columns' lag sums in alpha's grid cells g with a vector w of
+    Hermite weights (4,), or (4, draws) where many: cross(w) = sum_k w_k S(K_k, o), (3, 4, *batch)
+    for o = (y, a, u, sign); gram(w) = S(K, K) w, (3, 4, *batch); quadratic(v, gram(w)) = v'S(K, K) w,
+    (3, *batch)."""
+    cell_cross, cell_gram = table.cross[g], table.gram[g]  # (3, 4, 4, J), or (draws, 3, 4, 4, J)
+    if many:  # one alpha per draw (the posterior's draws, in numpy): einsum is 3x faster
+        return (lambda w: xp.einsum("kd,dlkmj->lmdj", w, cell_cross, optimize=True),
+                lambda w: xp.einsum("dlkmj,md->lkdj", cell_gram, w, optimize=True),
+                lambda v, gram_w: xp.einsum("lkdj,kd->ldj", gram_w, v, optimize=True))
+    # contractions as broadcast sums: XLA fuses these into loops over the tests, where its
+    # batched dot products of 4x4 blocks cost several times more on CPU
+    return (lambda w: xp.sum(w[None, :, None, None] * cell_cross, axis=1),
+            lambda w: xp.sum(cell_gram * w[None, None, :, None], axis=2),
+            lambda v, gram_w: xp.sum(gram_w * v[None, :, None], axis=1))
 
 
 def damping_rows(table: MomentTable, alpha, xp=jnp):
@@ -219,22 +228,10 @@ def damping_rows(table: MomentTable, alpha, xp=jnp):
     d = sum_k w_k K_k, so its row is sum_k w_k S(K_k, .) and its diagonal w' S(K, K) w (see
     MomentTable)."""
     g, weights, slopes = hermite_weights(table, alpha, xp)
-    cell_cross, cell_gram = table.cross[g], table.gram[g]  # (3, 4, 4, J), or (draws, 3, 4, 4, J)
-    if xp.ndim(alpha):  # one alpha per draw (the posterior's draws, in numpy): einsum is 3x faster
-        others = xp.einsum("kd,dlkmj->lmdj", weights, cell_cross, optimize=True)  # (3, 4, draws, J)
-        d_others = xp.einsum("kd,dlkmj->lmdj", slopes, cell_cross, optimize=True)
-        gram_weights = xp.einsum("dlkmj,md->lkdj", cell_gram, weights, optimize=True)
-        diagonal = xp.einsum("lkdj,kd->ldj", gram_weights, weights, optimize=True)  # (3, draws, J)
-        d_diagonal = 2.0 * xp.einsum("lkdj,kd->ldj", gram_weights, slopes, optimize=True)
-    else:
-        weights, slopes = weights[..., None], slopes[..., None]  # (4, 1)
-        # contractions as broadcast sums: XLA fuses these into loops over the tests, where its
-        # batched dot products of 4x4 blocks cost several times more on CPU
-        others = xp.sum(weights[None, :, None] * cell_cross, axis=1)  # (3, 4, J): (y, a, u, sign)
-        d_others = xp.sum(slopes[None, :, None] * cell_cross, axis=1)
-        gram_weights = xp.sum(cell_gram * weights[None, None, :], axis=2)  # (3, 4, J)
-        diagonal = xp.sum(gram_weights * weights[None, :], axis=1)  # (3, J)
-        d_diagonal = 2.0 * xp.sum(gram_weights * slopes[None, :], axis=1)
+    cross, gram, quadratic = _cell_contractions(table, g, bool(xp.ndim(alpha)), xp)
+    gram_weights = gram(weights)
+    others, d_others = cross(weights), cross(slopes)  # (y, a, u, sign)
+    diagonal, d_diagonal = quadratic(weights, gram_weights), 2.0 * quadratic(slopes, gram_weights)
 
     def row(o, diag):
         return xp.stack([o[:, 0], o[:, 1], o[:, 2], diag, o[:, 3]], axis=1)
@@ -245,7 +242,7 @@ def damping_rows(table: MomentTable, alpha, xp=jnp):
 def lag_sums_at(table: MomentTable, alpha, xp=jnp, gain=1.0):
     """S_l(alpha), l = 0, 1, 2, as (3, 5, 5, J): W = S0 - phi S1 + phi^2 S2, with the payload's
     friction gain `gain` (friction_factors)."""
-    S = _with_damping_row(table.constant, damping_rows(table, alpha, xp)[0])
+    S = _with_rows(table.constant, [(DAMPING, damping_rows(table, alpha, xp)[0])])
     return _scaled_sign(S, friction_factors(table, gain, xp), xp)
 
 
@@ -275,9 +272,7 @@ DEVIATION = 5  # index of d' in the extended z
 
 def hermite_curvatures(table: MomentTable, alpha, xp=jnp):
     """The second alpha-derivatives of hermite_weights' weights, (4, *alpha.shape)."""
-    position = (alpha - table.alpha_start) / table.alpha_step
-    g = xp.clip(xp.floor(position), 0, table.cross.shape[0] - 1)
-    s = position - g
+    _, s = _hermite_position(table, alpha, xp)
     return xp.stack([12 * s - 6, 6 * s - 4, 6 - 12 * s, 6 * s - 2]) / (table.alpha_step * table.alpha_step)
 
 
@@ -296,29 +291,7 @@ def deviation_rows(table: MomentTable, alpha, xp=jnp):
     """
     g, weights, slopes = hermite_weights(table, alpha, xp)
     curvatures = hermite_curvatures(table, alpha, xp)
-    cell_cross, cell_gram = table.cross[g], table.gram[g]
-    many = bool(xp.ndim(alpha))
-    if many:
-        def cross(w):
-            return xp.einsum("kd,dlkmj->lmdj", w, cell_cross, optimize=True)
-
-        def gram(w):
-            return xp.einsum("dlkmj,md->lkdj", cell_gram, w, optimize=True)
-
-        def quadratic(w, gram_w):
-            return xp.einsum("lkdj,kd->ldj", gram_w, w, optimize=True)
-    else:
-        weights, slopes, curvatures = weights[..., None], slopes[..., None], curvatures[..., None]
-
-        def cross(w):
-            return xp.sum(w[None, :, None] * cell_cross, axis=1)
-
-        def gram(w):
-            return xp.sum(cell_gram * w[None, None, :], axis=2)
-
-        def quadratic(w, gram_w):
-            return xp.sum(gram_w * w[None, :], axis=1)
-
+    cross, gram, quadratic = _cell_contractions(table, g, bool(xp.ndim(alpha)), xp)
     c_w, c_s, c_c = cross(weights), cross(slopes), cross(curvatures)
     g_s, g_c = gram(slopes), gram(curvatures)
     wGs, sGs, wGc, sGc = quadratic(weights, g_s), quadratic(slopes, g_s), quadratic(weights, g_c), quadratic(slopes, g_c)
@@ -472,22 +445,25 @@ def _noise_sd(table: MomentTable, sigma, xp):
 
 
 def _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation):
-    """The whitened moments the test terms read (5, 5, *batch) and the extra log-likelihood per
-    test: plain, or with each test's deviation coefficient integrated out (absorb_deviation)."""
+    """The whitened moments the test terms read (5, 5, *batch), the noise sd, the extra
+    log-likelihood per test and absorb_deviation's (q, r, w): plain (0 and None), or with each
+    test's deviation coefficient integrated out."""
     noise = _noise_sd(table, sigma, xp)
     if deviation is None:
-        return whitened_at(table, alpha, phi, xp, gain), noise, 0.0
+        return whitened_at(table, alpha, phi, xp, gain), noise, 0.0, None
     extended = _lagged(extended_lag_sums(table, alpha, xp, gain), phi)
     spread = xp.asarray(deviation)
     spread = spread[..., None] if spread.ndim else spread  # one per draw: broadcast over the tests
-    reduced, extra, _ = absorb_deviation(extended, noise, spread, xp)
-    return reduced, noise, extra
+    reduced, extra, parts = absorb_deviation(extended, noise, spread, xp)
+    return reduced, noise, extra, parts
 
 
-def _terms(table, alpha, rho, phi, sigma, xp, gain=1.0, deviation=None):
-    whitened, noise, extra = _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation)
-    terms = test_terms(whitened, table.n_pairs, noise, rho, xp)
-    return terms._replace(c=terms.c + extra)
+def _exponents(parts, noise, alpha, coefficients, normal, xp):
+    """Each test's own exponent alpha + delta_j given its coefficients (4, [draws,] J), from
+    standard normal deviates normal ([draws,] J) (draw_deviations gives the conditional)."""
+    q, r, _ = parts
+    c = (q[0] - xp.sum(q[1:] * coefficients, axis=0)) / r + noise / xp.sqrt(r) * normal
+    return xp.asarray(alpha)[..., None] + c / coefficients[2]
 
 
 def _symmetric(whitened, xp):
@@ -595,7 +571,7 @@ def marginal_gradient(whitened, n_pairs, noise, rho, prior_mean, prior_sd, xp=jn
 
 
 def _collapsed_value(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain=1.0, deviation=None):
-    whitened, noise, extra = _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation)
+    whitened, noise, extra, _ = _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation)
     return marginal_log_likelihood(whitened, table.n_pairs, noise, rho, prior_mean, prior_sd, xp) + xp.sum(extra)
 
 
@@ -620,20 +596,31 @@ def collapsed_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, p
         return _extended_gradient(table, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain, deviation)
     rows, d_rows = damping_rows(table, alpha, xp)
     factors = friction_factors(table, gain, xp)
-    S = _scaled_sign(_with_damping_row(table.constant, rows), factors, xp)
+    S = _scaled_sign(_with_rows(table.constant, [(DAMPING, rows)]), factors, xp)
     noise = _noise_sd(table, sigma, xp)
     W = _lagged(S, phi)
     value, (d_W, d_noise, d_rho, d_prior_mean, d_prior_sd) = marginal_gradient(
         W, table.n_pairs, noise, rho, prior_mean, prior_sd, xp)
     d_phi = xp.sum(d_W * (2.0 * phi * S[2] - S[1]), axis=(0, 1))
     d_row = _lagged(d_rows, phi)  # row DAMPING of dW/dalpha, (5, J); d_W is symmetric
-    if factors is None:
-        d_gain = xp.zeros(())
-    else:
+    if factors is not None:
         d_row = d_row * _sign_column(factors)
-        d_gain = xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
-    d_alpha = xp.sum(2.0 * xp.sum(d_W[DAMPING] * d_row, axis=0) - d_W[DAMPING, DAMPING] * d_row[DAMPING])
-    return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain, xp.zeros(()))
+    d_alpha = xp.sum(_row_gradient(d_W, d_row, DAMPING, xp))
+    return value, (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd,
+                   _gain_gradient(table, factors, d_W, W, xp), xp.zeros(()))
+
+
+def _row_gradient(d_W, row, index, xp):
+    """sum_ab G_ab dW_ab per test, G = d_W symmetric, for a dW whose only nonzero entries are its
+    row and column `index`, both `row` (n, J): the row once, the column once, the diagonal once."""
+    return 2.0 * xp.sum(d_W[index] * row, axis=0) - d_W[index, index] * row[index]
+
+
+def _gain_gradient(table: MomentTable, factors, d_W, W, xp):
+    """dl/dkappa = sum_j w_j (2/s_j) sum_b G_j,SIGN b W_j,SIGN b (collapsed_gradient); 0 without loads."""
+    if factors is None:
+        return xp.zeros(())
+    return xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
 
 
 def _extended_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, prior_sd, xp, gain, deviation):
@@ -647,17 +634,10 @@ def _extended_gradient(table: MomentTable, alpha, rho, phi, sigma, prior_mean, p
     d_W, d_noise_extra, d_deviation = absorb_deviation_gradient(d_reduced, parts, noise, deviation, xp)
     d_noise = d_noise + d_noise_extra
     d_phi = xp.sum(d_W * (2.0 * phi * S[2] - S[1]), axis=(0, 1))
-    # sum_ab G_ab dW_ab/dalpha over rows and columns DAMPING and DEVIATION, G symmetric: each row
-    # once and its column once, the diagonal entry once (the (d, d') pair sits in row d only)
-    moved_d, moved_deviation = _lagged(slope_d, phi), _lagged(slope_deviation, phi)
-    d_alpha = xp.sum(2.0 * xp.sum(d_W[DAMPING] * moved_d, axis=0) - d_W[DAMPING, DAMPING] * moved_d[DAMPING]
-                     + 2.0 * xp.sum(d_W[DEVIATION] * moved_deviation, axis=0)
-                     - d_W[DEVIATION, DEVIATION] * moved_deviation[DEVIATION])
-    factors = friction_factors(table, gain, xp)
-    if factors is None:
-        d_gain = xp.zeros(())
-    else:
-        d_gain = xp.sum(table.load_share * 2.0 / factors * xp.sum(d_W[SIGN] * W[SIGN], axis=0))
+    # rows DAMPING and DEVIATION move with alpha; the (d, d') pair sits in row d only
+    d_alpha = xp.sum(_row_gradient(d_W, _lagged(slope_d, phi), DAMPING, xp)
+                     + _row_gradient(d_W, _lagged(slope_deviation, phi), DEVIATION, xp))
+    d_gain = _gain_gradient(table, friction_factors(table, gain, xp), d_W, W, xp)
     return value + xp.sum(extra), (d_alpha, d_rho, d_phi, d_noise * sigma / noise, d_prior_mean, d_prior_sd, d_gain,
                                    d_deviation)
 
@@ -716,7 +696,7 @@ _collapsed_jax.defvjp(_collapsed_jax_forward, _collapsed_jax_backward)
 
 def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
                       prior_mean, prior_sd, xp=jnp, gain=1.0, ignored_spread=None, normal_ignored=None,
-                      deviation=None):
+                      deviation=None, normal_deviation=None):
     """An exact draw of mu (4,) and every theta_j (J, 4) given the sampled parameters, from
     standard normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
     log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units).
@@ -728,7 +708,9 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     theta_j's Coulomb coefficient is that of test j's column s_j L_j filter(sign v)
     (friction_factors): the empty table's friction as the test saw it. With deviation (rho_d,
     one per draw) each test's deviation coefficient is integrated out (absorb_deviation): the
-    draws of theta and the log-likelihood are those marginal over it.
+    draws of theta and the log-likelihood are those marginal over it; with normal_deviation
+    ([draws,] J) as well, each test's own exponent is drawn given its theta (draw_deviations) and
+    returned fourth.
 
     ignored_spread (4,) (floats, zeros for none) and normal_ignored (4, [draws,] J): a shared
     coefficient k (rho_k = 0) whose tests may in truth differ by d_jk ~ N(0, (s_k mu_k)^2).
@@ -736,7 +718,9 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     H_j = (I + A T)^-1 A_j), so mu gains sum_j Q^-1 H_j e_k s_k |mu_k| z_jk: the shared fit's
     population value with the spread it left out. Tests that pin coefficient k dominate both
     its value and this term."""
-    terms = _terms(table, alpha, rho, phi, sigma, xp, gain, deviation)
+    whitened, noise, extra, parts = _reduced_whitened(table, alpha, phi, sigma, xp, gain, deviation)
+    terms = test_terms(whitened, table.n_pairs, noise, rho, xp)
+    terms = terms._replace(c=terms.c + extra)
     Q, r = population_posterior(terms, prior_mean, prior_sd, xp)
     Q_chol = sl.cholesky(Q, xp)
     # mu = Q^-1 r + L^-T z has covariance Q^-1
@@ -746,8 +730,8 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
             if relative_sd > 0.0:
                 # (4, [draws,] J): how test j's coefficient k moves mu
                 response = sl.cho_solve(Q_chol[..., None], terms.H[:, k], xp)
-                deviation = relative_sd * xp.abs(mu[k])[..., None] * normal_ignored[k]
-                mu = mu + xp.sum(response * deviation[None], axis=-1)
+                shift = relative_sd * xp.abs(mu[k])[..., None] * normal_ignored[k]
+                mu = mu + xp.sum(response * shift[None], axis=-1)
     per_test_mu = mu[..., None]  # (4, [draws,] 1)
     residual = terms.b - xp.sum(terms.A * per_test_mu[None], axis=1)
     # theta_j = mu + D B^-1 D (b - A mu) + D L^-T z has covariance D B^-1 D
@@ -759,7 +743,10 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     )
     quadratic = xp.sum(per_test_mu[:, None] * terms.H * per_test_mu[None, :], axis=(0, 1))
     per_test = terms.c + xp.sum(terms.h * per_test_mu, axis=0) - 0.5 * quadratic
-    return xp.moveaxis(mu, 0, -1), xp.moveaxis(theta, 0, -1), per_test
+    drawn = (xp.moveaxis(mu, 0, -1), xp.moveaxis(theta, 0, -1), per_test)
+    if parts is None or normal_deviation is None:
+        return drawn
+    return drawn + (_exponents(parts, noise, alpha, theta, normal_deviation, xp),)
 
 
 def draw_deviations(normal, table: MomentTable, alpha, theta, phi, sigma, deviation, xp=np, gain=1.0):
@@ -773,12 +760,7 @@ def draw_deviations(normal, table: MomentTable, alpha, theta, phi, sigma, deviat
         c_j | theta_j, y ~ N((q_y - q_x' theta_j) / r, s^2 / r),
 
     q_y and q_x the entries of q for y and the four coefficients, so (theta_j, c_j) is a draw
-    of their joint posterior; delta_j = c_j / Ce_j."""
-    extended = _lagged(extended_lag_sums(table, alpha, xp, gain), phi)
-    noise = _noise_sd(table, sigma, xp)
-    spread = xp.asarray(deviation)[..., None]
-    _, _, (q, r, _) = absorb_deviation(extended, noise, spread, xp)
-    coefficients = xp.moveaxis(theta, -1, 0)  # (4, draws, J)
-    mean = (q[0] - xp.sum(q[1:] * coefficients, axis=0)) / r
-    c = mean + noise / xp.sqrt(r) * normal
-    return xp.asarray(alpha)[..., None] + c / coefficients[2]
+    of their joint posterior; delta_j = c_j / Ce_j. (draw_coefficients draws them in the same
+    pass with normal_deviation.)"""
+    _, noise, _, parts = _reduced_whitened(table, alpha, phi, sigma, xp, gain, xp.asarray(deviation))
+    return _exponents(parts, noise, alpha, xp.moveaxis(theta, -1, 0), normal, xp)

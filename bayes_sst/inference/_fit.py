@@ -350,7 +350,7 @@ def fit(
             varying=jnp.asarray(priors.varying_mask()),
             gain=tuple(float(x) for x in priors.payload_friction_gain) if with_gain else None,
             alpha_spread=None if priors.alpha_spread is None else tuple(float(x) for x in priors.alpha_spread),
-            deviation_scale=pooled_damping(moments)[1],
+            deviation_scale=pooled_damping(moments)[1] if priors.alpha_spread is not None else 1.0,
         )
         start_values = _initial_values(moments, priors.alpha_mean, with_gain,
                                        None if priors.alpha_spread is None else float(priors.alpha_spread[0]))

@@ -21,8 +21,8 @@ def _padded(arrays, fill=np.nan):
 
 def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings, series, signals=None):
     """posterior, sample_stats, log_likelihood, observed_data, constant_data as one DataTree."""
-    from bayes_sst.inference._collapsed import draw_coefficients, draw_deviations, friction_factors, moment_table
-    from bayes_sst.inference._priors import ALPHA_SPREAD_SITE, GAIN_SITE
+    from bayes_sst.inference._collapsed import draw_coefficients, friction_factors, moment_table
+    from bayes_sst.inference._priors import ALPHA_SPREAD_SITE, ALPHA_SPREAD_VARIABLE, GAIN_SITE
 
     chains, draws = samples["alpha"].shape
     flat = {name: np.reshape(np.asarray(value), (chains * draws,) + value.shape[2:]) for name, value in samples.items()}
@@ -54,15 +54,16 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     block = max(1, 20_000 // max(n_tests, 1))
     for lo in range(0, n_draws, block):
         part = slice(lo, min(lo + block, n_draws))
-        mu[part], theta[part], per_test[part] = draw_coefficients(
+        drawn = draw_coefficients(
             normal_mu[part].T, normal_theta[part], host_table, flat["alpha"][part], flat["spread"][part].T,
             flat["phi"][part], flat["sigma"][part], prior_mean, prior_sd, xp=np, gain=gain[part],
             ignored_spread=ignored, normal_ignored=None if ignored is None else normal_ignored[:, part],
             deviation=None if deviation is None else deviation[part],
+            normal_deviation=None if normal_deviation is None else normal_deviation[part],
         )
+        mu[part], theta[part], per_test[part] = drawn[:3]
         if with_deviation:
-            exponents[part] = draw_deviations(normal_deviation[part], host_table, flat["alpha"][part], theta[part],
-                                              flat["phi"][part], flat["sigma"][part], deviation[part], np, gain[part])
+            exponents[part] = drawn[3]
     if with_gain:
         # each test's Coulomb coefficient as that of its column friction_load*filter(sign v),
         # the column the report, the predictive checks and the diagnosis rebuild
@@ -84,7 +85,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     if with_gain:
         posterior[GAIN_SITE] = (("chain", "draw"), np.asarray(samples[GAIN_SITE]))
     if with_deviation:
-        posterior["alpha_between_test_sd"] = (("chain", "draw"), np.asarray(samples[ALPHA_SPREAD_SITE]))
+        posterior[ALPHA_SPREAD_VARIABLE] = (("chain", "draw"), np.asarray(samples[ALPHA_SPREAD_SITE]))
         posterior["alpha_test"] = (("chain", "draw", "test"), shaped(exponents))
     posterior["between_test_sd"] = (
         ("chain", "draw", "coefficient"),
@@ -96,7 +97,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
     posterior["sigma"] = (("chain", "draw", "test"), np.asarray(samples["sigma"]) * moments.force_scale)
     units = {
         "Me": "kg", "Ke": "N/m", "Ce": "N/(m/s)^alpha", "Fmu": "N", "alpha": "1",
-        "between_test_sd": "SI units of each coefficient", "sigma": "N", "phi": "1", "alpha_between_test_sd": "1",
+        "between_test_sd": "SI units of each coefficient", "sigma": "N", "phi": "1", ALPHA_SPREAD_VARIABLE: "1",
         "alpha_test": "1",
         GAIN_SITE: "1",
     }
@@ -105,7 +106,7 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
         if name in post_ds:
             post_ds[name].attrs["units"] = unit
     if with_deviation:
-        post_ds["alpha_between_test_sd"].attrs["meaning"] = (
+        post_ds[ALPHA_SPREAD_VARIABLE].attrs["meaning"] = (
             "between-test sd of the damping exponent: test j's damping is Ce_j |v|^(alpha + delta_j) sign v "
             "with delta_j ~ N(0, sd^2), to first order in delta_j, each delta_j integrated out")
     if with_gain:

@@ -86,6 +86,8 @@ DEFAULT_FRICTION_COEFFICIENT = 0.01
 DEFAULT_GAS_EXPONENT = 1.4
 GAIN_SITE = "payload_friction_gain"
 ALPHA_SPREAD_SITE = "alpha_spread"
+# its name in the posterior and the summary
+ALPHA_SPREAD_VARIABLE = "alpha_between_test_sd"
 # (median, log sd) of tau's log-normal prior where the exponent varies between tests
 PER_TEST_ALPHA_PRIOR = (0.02, 1.0)
 
@@ -169,7 +171,7 @@ class Priors:
                                     **({"ignored_by_sharing": dict(self.ignored_spread)} if self.ignored_spread else {})},
             "payload_friction_gain": (None if self.payload_friction_gain is None else dict(
                 zip(("mean", "sd", "low", "high"), self.payload_friction_gain))),
-            "alpha_between_test_sd": (None if self.alpha_spread is None else dict(
+            ALPHA_SPREAD_VARIABLE: (None if self.alpha_spread is None else dict(
                 zip(("median", "log_sd"), self.alpha_spread))),
             **({"relations": dict(self.relations)} if self.relations else {}),
         }
@@ -296,14 +298,18 @@ def physics_centres(table: Mapping[str, Any]) -> dict[str, float]:
     return centres
 
 
-def make_priors(kind: str = "generic", table: Mapping[str, Any] | None = None) -> Priors:
-    """Priors of a named kind: 'generic' or 'physics' (centred by the table description)."""
+def make_priors(kind: str = "generic", table: Mapping[str, Any] | None = None, *,
+                per_test_alpha: bool = False) -> Priors:
+    """Priors of a named kind: 'generic' or 'physics' (centred by the table description);
+    per_test_alpha: the damping exponent varies between tests (PER_TEST_ALPHA_PRIOR)."""
+    exponent = {"alpha_spread": PER_TEST_ALPHA_PRIOR} if per_test_alpha else {}
     if kind == "generic":
-        return Priors()
+        return Priors(**exponent)
     if kind == "physics":
         report = physics_prior_report(table or {})
         relations = {name: entry["relation"] for name, entry in report.items() if name in COEFFICIENTS}
         return replace(
-            Priors(), centres=physics_centres(table or {}), relative_sd=0.5, source="physics", relations=relations
+            Priors(**exponent), centres=physics_centres(table or {}), relative_sd=0.5, source="physics",
+            relations=relations
         )
     raise ValueError(f"unknown prior kind {kind!r}; expected 'generic' or 'physics'")

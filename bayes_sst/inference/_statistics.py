@@ -289,6 +289,13 @@ def lagged_moments(
     )
 
 
+def _pooled_least_squares(m: np.ndarray) -> tuple[np.ndarray, float]:
+    """The coefficients minimising the residual of the lag-0 moments m (5, 5) of z = (y, x), and
+    that residual energy y'y - y'X theta."""
+    theta = np.linalg.lstsq(m[1:, 1:], m[1:, 0], rcond=1e-12)[0]
+    return theta, float(m[0, 0] - m[1:, 0] @ theta)
+
+
 def pooled_mass(moments, alpha_grid, coefficient_scale) -> float:
     """Me (kg) by least squares on all tests' lag-0 moments together at alpha = 0.5, one
     coefficient set for the whole series: a rough value, good to a few %, for the
@@ -296,8 +303,7 @@ def pooled_mass(moments, alpha_grid, coefficient_scale) -> float:
     mass is well apart from the stiffness, unlike within one). The scale of Me when the
     tests cannot give one."""
     node = int(np.argmin(np.abs(np.asarray(alpha_grid) - 0.5)))
-    total = sum(m[node, 0] for m in moments)  # moments: per test (G, 3, 5, 5)
-    theta = np.linalg.lstsq(total[1:, 1:], total[1:, 0], rcond=1e-12)[0]
+    theta, _ = _pooled_least_squares(sum(m[node, 0] for m in moments))  # moments: per test (G, 3, 5, 5)
     mass = float(theta[0] * coefficient_scale[0])
     return mass if np.isfinite(mass) and mass > 0.0 else float(coefficient_scale[0])
 
@@ -310,8 +316,7 @@ def pooled_damping(lagged: LaggedMoments) -> tuple[float, float]:
     total = np.sum(np.asarray(lagged.moments)[:, :, 0], axis=0)  # (G, 5, 5)
     best, found = np.inf, (float("nan"), 1.0)
     for g, m in enumerate(total):
-        theta = np.linalg.lstsq(m[1:, 1:], m[1:, 0], rcond=1e-12)[0]
-        residual = float(m[0, 0] - m[1:, 0] @ theta)
+        theta, residual = _pooled_least_squares(m)
         if np.isfinite(residual) and residual < best:
             best, found = residual, (float(lagged.alpha_grid[g]), float(abs(theta[DAMPING_COLUMN])))
     alpha, scale = found

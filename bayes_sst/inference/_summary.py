@@ -8,9 +8,8 @@ import numpy as np
 
 from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.inference._mixing import rank_rhat_and_bulk_ess
+from bayes_sst.inference._priors import ALPHA_SPREAD_VARIABLE as ALPHA_SPREAD
 from bayes_sst.inference._priors import GAIN_SITE
-
-ALPHA_SPREAD = "alpha_between_test_sd"  # the posterior's name of the exponent's between-test sd
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 

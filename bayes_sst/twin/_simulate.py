@@ -49,8 +49,10 @@ def _bucket(n: int) -> int:
     return -(-n // step) * step
 
 
-def deck_of_test(truth: TableTruth, factors: Mapping[str, float], payload_kg: float) -> DeckParams:
-    """The deck of one test: population truth times spread factors, payload on the deck.
+def deck_of_test(truth: TableTruth, factors: Mapping[str, float], payload_kg: float,
+                 alpha_shift: float = 0.0) -> DeckParams:
+    """The deck of one test: population truth times spread factors, payload on the deck, the
+    damping exponent moved by alpha_shift.
 
     Effects (off unless switched on in the truth): cubic spring k3 = K'e/h^2, hinge friction
     kh = Fp/h^2, a specimen with k_s = m_s*(2*pi*f_s)^2 and c_s = 2*zeta_s*m_s*2*pi*f_s.
@@ -62,7 +64,7 @@ def deck_of_test(truth: TableTruth, factors: Mapping[str, float], payload_kg: fl
         mass=truth.Me * factors["Me"] + payload_kg,
         Ke=truth.Ke * factors["Ke"],
         Ce=truth.Ce * factors["Ce"],
-        alpha=truth.alpha,
+        alpha=truth.alpha + alpha_shift,
         Fk=fmu,
         Fs=truth.static_ratio * fmu,
         stribeck_velocity=truth.stribeck_velocity,
@@ -288,8 +290,7 @@ def simulate(
         test_factors = {p: float(f[i]) for p, f in factors.items()}
         test_factors = _drifted(truth, test_factors, i / max(1, len(items) - 1))
         test_factor_list.append(test_factors)
-        deck = deck_of_test(truth, test_factors, item.payload_kg)
-        decks.append(deck._replace(alpha=deck.alpha + float(exponent_shift[i])) if alpha_spread > 0.0 else deck)
+        decks.append(deck_of_test(truth, test_factors, item.payload_kg, float(exponent_shift[i])))
 
     # One batched integration per output rate (tests of one batch share the step and k).
     sim: dict[str, list] = {name: [None] * len(items) for name in ("u", "v", "a", "F")}
