@@ -126,6 +126,12 @@ def make_series(seed, out_dir, effect=None, size=None, truth_path=None, name=Non
     'specimen' (size = mass in kg), 'nonlinear_stiffness' (size = K3 u^3 / Ke u at the largest
     amplitude), 'position_friction' (size = hinge share of Fk at the largest amplitude),
     'drift' (size = fall of friction and damping over the campaign).
+    overrides: replace draws after they are made, so every other draw stays the same: 'spread'
+    (relative sd of the test-to-test variation; 'spread_Me', 'spread_Ke', 'spread_Ce', 'spread_mu'
+    for one parameter), 'spread_seed' (the per-test factors drawn from a stream of their own),
+    'static_ratio' (Fs/Fk of a clean table), 'quiet' (true: ideal sensors), one sensor's noise
+    ('u_noise', 'u_q', 'a_noise', 'F_noise', 'F_hum', 'v_noise'),
+    and the loop's 'Kdp', 'Ka', 'Kp', 'f_valve', 'f_oil'.
     """
     rng = np.random.default_rng(seed + 1000 * (1 + ["None", "stiction", "channel_delay", "specimen",
                                                       "nonlinear_stiffness", "position_friction",
@@ -216,12 +222,29 @@ def make_series(seed, out_dir, effect=None, size=None, truth_path=None, name=Non
         raise ValueError(effect)
 
     # ---- per-test parameters
+    ov = dict(overrides or {})
+    spread = ov.get("spread", spread)
+    ratio_s = ov.get("static_ratio", ratio_s)
+    if ov.get("quiet"):  # ideal sensors (the noise draws below still consume the same stream)
+        u_noise = a_noise = F_noise = F_hum = v_noise = 0.0
+        u_q = 1e-12
+    u_noise, u_q, a_noise = ov.get("u_noise", u_noise), ov.get("u_q", u_q), ov.get("a_noise", a_noise)
+    F_noise, F_hum, v_noise = ov.get("F_noise", F_noise), ov.get("F_hum", F_hum), ov.get("v_noise", v_noise)
     nT = n_tests
-    rel = lambda: 1 + spread * rng.normal(size=nT)
-    Me_i = Me * rel()
-    Ke_i = Ke * rel()
-    Ce_i = Ce * rel()
-    mu_i = mu * rel()
+    # 'spread_seed': the per-test factors from a stream of their own (the main stream still
+    # makes its draws, so the rest of the series stays the same)
+    factor_rng = np.random.default_rng([int(ov["spread_seed"]), 4242]) if "spread_seed" in ov else None
+
+    def rel(name):
+        z = rng.normal(size=nT)
+        if factor_rng is not None:
+            z = factor_rng.normal(size=nT)
+        return 1 + ov.get("spread_" + name, spread) * z
+
+    Me_i = Me * rel("Me")
+    Ke_i = Ke * rel("Ke")
+    Ce_i = Ce * rel("Ce")
+    mu_i = mu * rel("mu")
     pay = np.array([t["payload"] for t in tests])
     s_camp = (order - 1) / max(nT - 1, 1)
     fall = 1 - drift * s_camp
@@ -258,7 +281,6 @@ def make_series(seed, out_dir, effect=None, size=None, truth_path=None, name=Non
     Ki = Kp * 0.5
     Ka = rng.uniform(0.001, 0.003)  # acceleration feedback (s); >= 0.008 limit-cycles at f_oil
     Kdp = rng.uniform(0.04, 0.08)  # delta-P feedback per Ps
-    ov = dict(overrides or {})
     Kdp = ov.get("Kdp", Kdp)
     Ka = ov.get("Ka", Ka)
     Kp = ov.get("Kp", Kp)

@@ -64,6 +64,10 @@ def main():
                         help="remove the a (and v) columns before fitting")
     parser.add_argument("--per-test-alpha", action="store_true",
                         help="let the damping exponent vary between tests (fit --per-test-alpha)")
+    parser.add_argument("--fifth-override", action="append", default=[], metavar="NAME=VALUE",
+                        help="fifth generator only: replace one of its draws after it is made, e.g. spread=0 "
+                             "(no test-to-test variation), quiet=1 (ideal sensors), static_ratio=1; see "
+                             "fifth_generator.make_series")
     args = parser.parse_args()
     from _options import signal_overrides, without_motion_sensors
 
@@ -82,8 +86,10 @@ def main():
     elif args.generator == "fifth":
         from fifth_generator import make_series as make_fifth
 
+        physics = {name: float(value) for name, value in (item.split("=", 1) for item in args.fifth_override)}
+
         def make_series(seed, folder):
-            make_fifth(seed, folder, truth_path=os.path.join(folder, "truth.json"))
+            make_fifth(seed, folder, truth_path=os.path.join(folder, "truth.json"), overrides=physics)
     else:
         from independent_generator import make_series
 
@@ -141,7 +147,8 @@ def main():
         print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f} sd {z.std(ddof=1):.2f}")
     if args.out:
         Path(args.out).write_text(json.dumps({"generator": args.generator, "signals": overrides, "without_acceleration": args.without_acceleration,
-                                              "per_test_alpha": args.per_test_alpha, "summary": summary, "rows": rows}, indent=1))
+                                              "per_test_alpha": args.per_test_alpha,
+                                              "fifth_overrides": args.fifth_override, "summary": summary, "rows": rows}, indent=1))
 
 
 if __name__ == "__main__":
