@@ -6,6 +6,11 @@ it). Its clean series are checked by benchmarks/clean_claims.py (fifth_clean_cla
 
     PYTHONPATH=. .venv/bin/python benchmarks/fifth_diagnosis.py --dir /tmp/fifth_effects \
         [--cases stic115 y7] [--out benchmarks/results/fifth_diagnosis.json]
+    PYTHONPATH=. .venv/bin/python benchmarks/fifth_diagnosis.py --fresh 12 --first-seed 200 --dir DIR
+
+--fresh N draws N series of seeds not looked at before, the six effects in turn (stiction,
+channel_delay, specimen, nonlinear_stiffness, position_friction, drift), each at a size the
+generator draws.
 
 Series missing from --dir are generated first (10-40 s each, numpy only); each diagnosis takes
 10-90 s on this 2-core machine.
@@ -68,6 +73,10 @@ def main():
     parser.add_argument("--dir", default="/tmp/bayes_sst_fifth_effects")
     parser.add_argument("--cases", nargs="*", default=None, help="labels to run (default: all)")
     parser.add_argument("--out", default=None)
+    parser.add_argument("--fresh", type=int, default=0, metavar="N",
+                        help="instead of the eighteen cases, N series of seeds not looked at before (from "
+                             "--first-seed), the six effects in turn, each at the size the generator draws")
+    parser.add_argument("--first-seed", type=int, default=200)
     args = parser.parse_args()
     sys.path.insert(0, str(HERE))
     from fifth_generator import make_series
@@ -75,8 +84,13 @@ def main():
     from bayes_sst.diagnosis import diagnose
     from bayes_sst.io import load_series
 
+    cases = CASES
+    if args.fresh:
+        effects = list(PARAMETERS)
+        cases = [(f"f{seed}", seed, effects[(seed - args.first_seed) % len(effects)], None)
+                 for seed in range(args.first_seed, args.first_seed + args.fresh)]
     rows = []
-    for label, seed, effect, size in CASES:
+    for label, seed, effect, size in cases:
         if args.cases and label not in args.cases:
             continue
         folder = os.path.join(args.dir, label)
