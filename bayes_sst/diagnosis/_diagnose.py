@@ -923,20 +923,18 @@ def diagnose(
         start = fit_base(scorer, given)
     say(f"screening {len(main_effects)} candidate effects ...")
     selected, current, ranking, steps = _select(scorer, start, main_effects, floor, say, timings)
+    # the default view's candidates were scored with these side findings in the model
+    for step in steps:
+        step["given"] = [e.name for e, _ in given] + step["given"]
     rival = _rival_of_side_findings(series, scorer, base, start, main_effects, floor, side_specs, side_views,
                                     side_scorers, say, timings) if given else None
     side_checks: dict[str, tuple] = {}
     if rival is not None:
         # the default view's own explanation wins: the side findings go in the check below (whose
         # screenings the rival made already); the screening with them given stays in the steps
-        for step in steps:
-            step["given"] = [e.name for e, _ in given] + step["given"]
         (selected, current, ranking, rival_steps), side_checks = rival
         steps = steps + rival_steps
         given, start = [], base
-    # the default view's candidates were scored with these side findings in the model
-    for step in steps:
-        step["given"] = [e.name for e, _ in given] + step["given"]
     if selected:
         # The other way round: each side view is screened again with the default view's findings
         # in its model; what it no longer selects is dropped, what it selects anew is added. A specimen

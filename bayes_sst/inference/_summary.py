@@ -8,8 +8,7 @@ import numpy as np
 
 from bayes_sst.reference import DISPLAY_UNITS
 from bayes_sst.inference._mixing import rank_rhat_and_bulk_ess
-from bayes_sst.inference._priors import ALPHA_SPREAD_VARIABLE as ALPHA_SPREAD
-from bayes_sst.inference._priors import GAIN_SITE
+from bayes_sst.inference._priors import ALPHA_SPREAD_VARIABLE as ALPHA_SPREAD, GAIN_SITE
 from bayes_sst.inference._statistics import COEFFICIENTS
 from bayes_sst.reference import PUBLISHED_SST
 
