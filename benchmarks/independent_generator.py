@@ -130,8 +130,15 @@ def ar1(rng, n, fs, tc, sd):
     return x
 
 
-def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, population=None, spread=0.02):
+def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, population=None, spread=0.02,
+                spread_seed=None, noise_seed=None, noise_scale=None):
+    """spread_seed, noise_seed: draw the tests' factors (1 + spread*N(0, 1)) or the sensors' noise
+    (force, displacement, acceleration; not the offsets) from a stream of their own, seeded so;
+    every other draw of the series stays as it was (the series' own stream is consumed the same).
+    noise_scale multiplies every sensor noise (default: $GEN_NOISE_SCALE, else 1; 0: ideal sensors).
+    """
     rng = np.random.default_rng(1000 + seed)
+    spread_rng = None if spread_seed is None else np.random.default_rng([int(spread_seed), 7])
     pop = {k: REF[k] * rng.uniform(0.8, 1.2) for k in ("Me", "Ke", "Ce", "Fmu")}
     pop["alpha"] = rng.uniform(0.4, 0.8)
     pop.update(population or {})  # after the draws, so the rest of the series does not change
@@ -139,7 +146,7 @@ def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, popula
     fs = int(sample_rate_hz or fs)  # the draw stays, so the rest of the series does not change
     fs_ratio = rng.uniform(1.0, 1.1)
     fs_ratio = (effects or {}).get("static_ratio", fs_ratio)
-    ns = float(os.environ.get("GEN_NOISE_SCALE", "1"))
+    ns = float(os.environ.get("GEN_NOISE_SCALE", "1")) if noise_scale is None else float(noise_scale)
     noise = dict(F_ar_sd=ns * rng.uniform(300, 800), F_tc=rng.uniform(0.010, 0.020), F_white=ns * 100.0,
                  u_white=ns * 20e-6, a_white=ns * 0.05)
     nominal = (REF["Me"], REF["Ke"], REF["Ce"], REF["alpha"], REF["Fmu"])
@@ -159,6 +166,8 @@ def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, popula
         n_in = int(rng.integers(1, 3)); n_steady = int(rng.integers(4, 9)); n_out = 1
         delta = rng.uniform(0.01, 0.03)
         p = {k: pop[k] * (1 + spread * rng.normal()) for k in ("Me", "Ke", "Ce", "Fmu")}
+        if spread_rng is not None:
+            p = {k: pop[k] * (1 + spread * spread_rng.normal()) for k in ("Me", "Ke", "Ce", "Fmu")}
         p["alpha"] = pop["alpha"]
         drift = (effects or {}).get("drift", 0.0) * j / (n_tests - 1)
         p["Ce"] *= 1 - drift
@@ -171,9 +180,15 @@ def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, popula
         Fs_ = np.interp(ts - (effects or {}).get("force_delay", 0.0), t, FA)
         n = len(idx)
         off_F = rng.uniform(-1000, 1000); off_u = rng.uniform(-1e-3, 1e-3)
-        F_rec = Fs_ + ar1(rng, n, fs, noise["F_tc"], max(noise["F_ar_sd"], 1e-9)) + rng.normal(0, noise["F_white"], n) + off_F
-        u_rec = us + rng.normal(0, noise["u_white"], n) + off_u
-        a_rec = as_ + rng.normal(0, noise["a_white"], n)
+        sensor_noise = [ar1(rng, n, fs, noise["F_tc"], max(noise["F_ar_sd"], 1e-9)) + rng.normal(0, noise["F_white"], n),
+                        rng.normal(0, noise["u_white"], n), rng.normal(0, noise["a_white"], n)]
+        if noise_seed is not None:
+            own = np.random.default_rng([int(noise_seed), j])
+            sensor_noise = [ar1(own, n, fs, noise["F_tc"], max(noise["F_ar_sd"], 1e-9)) + own.normal(0, noise["F_white"], n),
+                            own.normal(0, noise["u_white"], n), own.normal(0, noise["a_white"], n)]
+        F_rec = Fs_ + sensor_noise[0] + off_F
+        u_rec = us + sensor_noise[1] + off_u
+        a_rec = as_ + sensor_noise[2]
         tid = f"T{j + 1:02d}"
         fname = f"{tid}.csv"
         with open(os.path.join(out, fname), "w") as fh:
@@ -195,6 +210,8 @@ def make_series(seed, out, n_tests=20, effects=None, sample_rate_hz=None, popula
         json.dump(manifest, fh, indent=1)
     with open(os.path.join(out, "truth.json"), "w") as fh:
         json.dump(dict(seed=seed, population=pop, fs=fs, fs_ratio=fs_ratio, noise=noise,
+                       **({} if spread_seed is None else {"spread_seed": spread_seed}),
+                       **({} if noise_seed is None else {"noise_seed": noise_seed}),
                        effects=effects or {}, tests=truth_tests), fh, indent=1)
 
 

@@ -536,7 +536,8 @@ def test_coefficient_draws_for_many_draws_at_once_equal_draw_by_draw():
     for i in range(n_draws):
         alone = draw_coefficients(normal_mu[i], normal_theta[i], host, alpha[i], rho[:, i], phi[i], sigma[i],
                                   m0, s0, xp=np)
-        for part_together, part_alone in zip(together, alone):
+        assert together.exponents is None and alone.exponents is None
+        for part_together, part_alone in zip(together[:3], alone[:3]):
             assert np.allclose(part_together[i], part_alone, rtol=1e-12, atol=1e-12)
 
 

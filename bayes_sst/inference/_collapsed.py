@@ -694,12 +694,24 @@ def _collapsed_jax_backward(static, saved, cotangent):
 _collapsed_jax.defvjp(_collapsed_jax_forward, _collapsed_jax_backward)
 
 
+class CoefficientDraws(NamedTuple):
+    """What draw_coefficients draws (scaled units): the population values mu ([draws,] 4), each
+    test's coefficients theta ([draws,] J, 4), each test's log-likelihood given mu ([draws,] J),
+    and, where each test's own exponent was asked for, those exponents ([draws,] J; else None)."""
+
+    mu: np.ndarray
+    theta: np.ndarray
+    log_likelihood: np.ndarray
+    exponents: np.ndarray | None = None
+
+
 def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, phi, sigma,
                       prior_mean, prior_sd, xp=jnp, gain=1.0, ignored_spread=None, normal_ignored=None,
                       deviation=None, normal_deviation=None):
     """An exact draw of mu (4,) and every theta_j (J, 4) given the sampled parameters, from
     standard normal deviates normal_mu (4,) and normal_theta (J, 4); also the per-test
-    log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units).
+    log-likelihood log p(y_j | mu, alpha, rho, phi_j, sigma_j), (J,) (scaled units); returned
+    as CoefficientDraws.
 
     Many draws at once: alpha and gain (draws,), rho (4, draws), phi and sigma (draws, J),
     normal_mu (4, draws) and normal_theta (draws, J, 4) give mu (draws, 4), theta
@@ -709,8 +721,8 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     (friction_factors): the empty table's friction as the test saw it. With deviation (rho_d,
     one per draw) each test's deviation coefficient is integrated out (absorb_deviation): the
     draws of theta and the log-likelihood are those marginal over it; with normal_deviation
-    ([draws,] J) as well, each test's own exponent is drawn given its theta (draw_deviations) and
-    returned fourth.
+    ([draws,] J) as well, each test's own exponent is drawn given its theta (draw_deviations)
+    (CoefficientDraws.exponents).
 
     ignored_spread (4,) (floats, zeros for none) and normal_ignored (4, [draws,] J): a shared
     coefficient k (rho_k = 0) whose tests may in truth differ by d_jk ~ N(0, (s_k mu_k)^2).
@@ -743,10 +755,9 @@ def draw_coefficients(normal_mu, normal_theta, table: MomentTable, alpha, rho, p
     )
     quadratic = xp.sum(per_test_mu[:, None] * terms.H * per_test_mu[None, :], axis=(0, 1))
     per_test = terms.c + xp.sum(terms.h * per_test_mu, axis=0) - 0.5 * quadratic
-    drawn = (xp.moveaxis(mu, 0, -1), xp.moveaxis(theta, 0, -1), per_test)
-    if parts is None or normal_deviation is None:
-        return drawn
-    return drawn + (_exponents(parts, noise, alpha, theta, normal_deviation, xp),)
+    exponents = (None if parts is None or normal_deviation is None
+                 else _exponents(parts, noise, alpha, theta, normal_deviation, xp))
+    return CoefficientDraws(xp.moveaxis(mu, 0, -1), xp.moveaxis(theta, 0, -1), per_test, exponents)
 
 
 def draw_deviations(normal, table: MomentTable, alpha, theta, phi, sigma, deviation, xp=np, gain=1.0):

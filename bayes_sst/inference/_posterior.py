@@ -61,9 +61,9 @@ def build_tree(seed, samples, extra, scaled, moments, prepared, priors, settings
             deviation=None if deviation is None else deviation[part],
             normal_deviation=None if normal_deviation is None else normal_deviation[part],
         )
-        mu[part], theta[part], per_test[part] = drawn[:3]
+        mu[part], theta[part], per_test[part] = drawn.mu, drawn.theta, drawn.log_likelihood
         if with_deviation:
-            exponents[part] = drawn[3]
+            exponents[part] = drawn.exponents
     if with_gain:
         # each test's Coulomb coefficient as that of its column friction_load*filter(sign v),
         # the column the report, the predictive checks and the diagnosis rebuild

@@ -1,0 +1,154 @@
+"""One series of the first independent generator, many times over: how often the 90 % intervals
+hold the truth when only the chance parts of that series are drawn again.
+
+Two modes, both on one generator seed (its test plan, population truth, friction and noise
+levels kept):
+
+--mode redraw (default): the series regenerated with fresh test-to-test factors (spread_seed)
+    and fresh sensor noise (noise_seed), every other draw as the seed made it; then fitted with
+    the package defaults.
+--mode own-world: the force drawn from the package's own model on the seed's motion. The
+    series is regenerated once with ideal sensors; for each draw every test gets coefficients
+    theta_j = population*(1 + spread*N(0, 1)) and the record's force becomes
+
+        F = Me_j*a + Ke_j*u + (Ce_j*|v|^alpha + Fmu_j)*sign(v) + noise,   v = du/dt,
+
+    the noise being the seed's own force noise (AR(1) plus white) or, with --white-sd, white
+    noise of that sd at the recorded rate. This is the model the package fits, so its intervals
+    should cover the truth 90 % of the time here whatever the plan; what the redraw mode adds
+    on top is the generator's own physics (closed loop, sticking at reversals, sensor noise).
+
+    PYTHONPATH=. .venv/bin/python benchmarks/redraw_coverage.py --seed 40 --draws 48 \
+        --dir /tmp/redraw40 --out benchmarks/results/redraw_first_40.json
+    PYTHONPATH=. .venv/bin/python benchmarks/redraw_coverage.py --seed 40 --draws 40 --mode own-world \
+        --dir /tmp/own40 --out benchmarks/results/own_world_first_40.json
+
+Each draw prints z = (mean - truth)/sd per parameter; the end prints z's mean and sd and the
+coverage over the draws. About 15 s a draw (generation 5-10 s in redraw mode, fit 4-8 s).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
+COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
+
+
+def ar1_noise(rng, n: int, rate_hz: float, time_constant_s: float, sd: float) -> np.ndarray:
+    """Stationary AR(1) noise of sd `sd` whose correlation falls by e every time_constant_s."""
+    phi = math.exp(-1.0 / (rate_hz * time_constant_s))
+    innovations = rng.normal(0.0, sd * math.sqrt(1.0 - phi * phi), n)
+    out = np.empty(n)
+    out[0] = rng.normal(0.0, sd)
+    for i in range(1, n):
+        out[i] = phi * out[i - 1] + innovations[i]
+    return out
+
+
+def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd: float | None) -> dict:
+    """Copy the ideal-sensor series `quiet` to `folder` with every test's force replaced by the
+    model's (module docstring); returns the truth's population values."""
+    truth = json.loads(Path(quiet, "truth.json").read_text())
+    population, rate, noise = truth["population"], truth["fs"], truth["noise_of_seed"]
+    rng = np.random.default_rng([draw, 11])
+    shutil.rmtree(folder, ignore_errors=True)
+    shutil.copytree(quiet, folder)
+    manifest = json.loads(Path(folder, "series.json").read_text())
+    for test in manifest["tests"]:
+        path = Path(folder, test["file"])
+        data = np.loadtxt(path, delimiter=",", skiprows=1)
+        t, u, a = data[:, 0], data[:, 1], data[:, 3]
+        v = np.gradient(u, t)
+        theta = {k: population[k] * (1.0 + spread * rng.normal()) for k in COEFFICIENTS}
+        moving = np.sign(v) * (np.abs(v) > 1e-6)  # the generator's table rests with v exactly 0
+        force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * np.abs(v) ** population["alpha"] + theta["Fmu"]) * moving
+        if white_sd is None:
+            force += ar1_noise(rng, len(t), rate, noise["F_tc"], noise["F_ar_sd"]) + rng.normal(0.0, noise["F_white"], len(t))
+        else:
+            force += rng.normal(0.0, white_sd, len(t))
+        data[:, 2] = force
+        with open(path, "w") as fh:
+            fh.write("t,u,F,a\n")
+            for row in data:
+                fh.write("%.6f,%.9e,%.9e,%.9e\n" % tuple(row))
+    return population
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seed", type=int, required=True, help="the first generator's series seed")
+    parser.add_argument("--draws", type=int, default=24)
+    parser.add_argument("--first-draw", type=int, default=0)
+    parser.add_argument("--mode", choices=("redraw", "own-world"), default="redraw")
+    parser.add_argument("--spread", type=float, default=0.02,
+                        help="own-world: relative test-to-test sd of Me, Ke, Ce, Fmu (the generator's is 0.02)")
+    parser.add_argument("--white-sd", type=float, default=None,
+                        help="own-world: white force noise of this sd (N) in place of the seed's own")
+    parser.add_argument("--dir", default="/tmp/bayes_sst_redraw")
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    sys.path.insert(0, str(HERE))
+    from independent_generator import make_series
+
+    from bayes_sst.inference import fit
+    from bayes_sst.inference._priors import make_priors
+    from bayes_sst.inference._summary import summarize
+    from bayes_sst.io import load_series
+
+    quiet = os.path.join(args.dir, f"s{args.seed:02d}_ideal_sensors")
+    if args.mode == "own-world" and not os.path.exists(os.path.join(quiet, "truth.json")):
+        noisy = os.path.join(args.dir, f"s{args.seed:02d}")
+        make_series(args.seed, noisy)
+        make_series(args.seed, quiet, noise_scale=0.0)
+        truth = json.loads(Path(quiet, "truth.json").read_text())
+        truth["noise_of_seed"] = json.loads(Path(noisy, "truth.json").read_text())["noise"]
+        Path(quiet, "truth.json").write_text(json.dumps(truth, indent=1))
+
+    rows = []
+    for draw in range(args.first_draw, args.first_draw + args.draws):
+        folder = os.path.join(args.dir, f"s{args.seed:02d}_draw{draw:03d}")
+        if args.mode == "redraw":
+            if not os.path.exists(os.path.join(folder, "truth.json")):
+                make_series(args.seed, folder, spread_seed=500 + draw, noise_seed=900 + draw)
+            population = json.loads(Path(folder, "truth.json").read_text())["population"]
+        else:
+            population = own_world_series(quiet, folder, draw, args.spread, args.white_sd)
+        started = time.perf_counter()
+        series = load_series(folder)
+        result = fit(series, seed=draw, prior=make_priors("generic", series.table))
+        summary = summarize(result.tree)
+        row = {"draw": draw, "seconds": time.perf_counter() - started, "converged": summary["converged"]}
+        for name in NAMES:
+            p = summary["parameters"][name]
+            row[name] = {"truth": population[name], "mean": p["mean"], "sd": p["sd"],
+                         "covered": bool(p["q05"] <= population[name] <= p["q95"]),
+                         "z": (p["mean"] - population[name]) / p["sd"]}
+        rows.append(row)
+        print(f"draw {draw:3d}  " + "  ".join(f"{n} {row[n]['z']:+5.2f}{'' if row[n]['covered'] else '*'}" for n in NAMES)
+              + ("" if row["converged"] else "  NOT CONVERGED"), flush=True)
+    summary = {}
+    for name in NAMES:
+        z = np.array([r[name]["z"] for r in rows])
+        summary[name] = {"coverage": float(np.mean([r[name]["covered"] for r in rows])),
+                         "z_mean": float(z.mean()), "z_sd": float(z.std(ddof=1)) if len(z) > 1 else None}
+        print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f}"
+              + (f" sd {z.std(ddof=1):.2f}" if len(z) > 1 else ""))
+    if args.out:
+        Path(args.out).write_text(json.dumps({"command": " ".join(sys.argv), "seed": args.seed, "mode": args.mode,
+                                              "spread": args.spread, "white_sd": args.white_sd,
+                                              "summary": summary, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
