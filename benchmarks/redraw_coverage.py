@@ -22,6 +22,12 @@ levels kept):
         --dir /tmp/redraw40 --out benchmarks/results/redraw_first_40.json
     PYTHONPATH=. .venv/bin/python benchmarks/redraw_coverage.py --seed 40 --draws 40 --mode own-world \
         --dir /tmp/own40 --out benchmarks/results/own_world_first_40.json
+    PYTHONPATH=. .venv/bin/python benchmarks/redraw_coverage.py --seed 40 --draws 40 --mode own-world \
+        --spread-on Ce,Fmu [--pinned-spread] --dir /tmp/own40cf --out ...
+
+--spread-on lets only some coefficients vary between tests; --pinned-spread fits with their
+between-test spread prior held at the truth, which shows what reading the spread from the data
+costs the intervals.
 
 Each draw prints z = (mean - truth)/sd per parameter; the end prints z's mean and sd and the
 coverage over the draws. About 15 s a draw (generation 5-10 s in redraw mode, fit 4-8 s).
@@ -36,6 +42,7 @@ import os
 import shutil
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -56,9 +63,11 @@ def ar1_noise(rng, n: int, rate_hz: float, time_constant_s: float, sd: float) ->
     return out
 
 
-def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd: float | None) -> dict:
+def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd: float | None,
+                     spread_on=COEFFICIENTS) -> dict:
     """Copy the ideal-sensor series `quiet` to `folder` with every test's force replaced by the
-    model's (module docstring); returns the truth's population values."""
+    model's (module docstring), only the coefficients in spread_on varying between tests;
+    returns the truth's population values."""
     truth = json.loads(Path(quiet, "truth.json").read_text())
     population, rate, noise = truth["population"], truth["fs"], truth["noise_of_seed"]
     rng = np.random.default_rng([draw, 11])
@@ -70,7 +79,8 @@ def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd
         data = np.loadtxt(path, delimiter=",", skiprows=1)
         t, u, a = data[:, 0], data[:, 1], data[:, 3]
         v = np.gradient(u, t)
-        theta = {k: population[k] * (1.0 + spread * rng.normal()) for k in COEFFICIENTS}
+        # every coefficient takes its deviate, so the noise's stream is the same whatever varies
+        theta = {k: population[k] * (1.0 + (spread if k in spread_on else 0.0) * rng.normal()) for k in COEFFICIENTS}
         moving = np.sign(v) * (np.abs(v) > 1e-6)  # the generator's table rests with v exactly 0
         force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * np.abs(v) ** population["alpha"] + theta["Fmu"]) * moving
         if white_sd is None:
@@ -93,6 +103,11 @@ def main():
     parser.add_argument("--mode", choices=("redraw", "own-world"), default="redraw")
     parser.add_argument("--spread", type=float, default=0.02,
                         help="own-world: relative test-to-test sd of Me, Ke, Ce, Fmu (the generator's is 0.02)")
+    parser.add_argument("--spread-on", default=",".join(COEFFICIENTS),
+                        help="own-world: the coefficients that vary between tests, e.g. Ce,Fmu")
+    parser.add_argument("--pinned-spread", action="store_true",
+                        help="own-world: fit with the between-test spread prior of the --spread-on "
+                             "coefficients pinned at the truth (log sd 0.05), to see what reading the spread costs")
     parser.add_argument("--white-sd", type=float, default=None,
                         help="own-world: white force noise of this sd (N) in place of the seed's own")
     parser.add_argument("--dir", default="/tmp/bayes_sst_redraw")
@@ -115,6 +130,10 @@ def main():
         truth["noise_of_seed"] = json.loads(Path(noisy, "truth.json").read_text())["noise"]
         Path(quiet, "truth.json").write_text(json.dumps(truth, indent=1))
 
+    spread_on = tuple(name for name in args.spread_on.split(",") if name)
+    unknown = set(spread_on) - set(COEFFICIENTS)
+    if unknown:
+        raise SystemExit(f"--spread-on: {sorted(unknown)} are not among {COEFFICIENTS}")
     rows = []
     for draw in range(args.first_draw, args.first_draw + args.draws):
         folder = os.path.join(args.dir, f"s{args.seed:02d}_draw{draw:03d}")
@@ -123,10 +142,14 @@ def main():
                 make_series(args.seed, folder, spread_seed=500 + draw, noise_seed=900 + draw)
             population = json.loads(Path(folder, "truth.json").read_text())["population"]
         else:
-            population = own_world_series(quiet, folder, draw, args.spread, args.white_sd)
+            population = own_world_series(quiet, folder, draw, args.spread, args.white_sd, spread_on)
         started = time.perf_counter()
         series = load_series(folder)
-        result = fit(series, seed=draw, prior=make_priors("generic", series.table))
+        prior = make_priors("generic", series.table)
+        if args.pinned_spread:
+            pinned = {k: (args.spread * population[k] / prior.centres[k], 0.05) for k in spread_on}
+            prior = replace(prior, spread_by_coefficient={**prior.spread_by_coefficient, **pinned})
+        result = fit(series, seed=draw, prior=prior)
         summary = summarize(result.tree)
         row = {"draw": draw, "seconds": time.perf_counter() - started, "converged": summary["converged"]}
         for name in NAMES:
@@ -147,6 +170,7 @@ def main():
     if args.out:
         Path(args.out).write_text(json.dumps({"command": " ".join(sys.argv), "seed": args.seed, "mode": args.mode,
                                               "spread": args.spread, "white_sd": args.white_sd,
+                                              "spread_on": list(spread_on), "pinned_spread": args.pinned_spread,
                                               "summary": summary, "rows": rows}, indent=1))
 
 
