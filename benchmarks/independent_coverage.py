@@ -30,10 +30,9 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from _options import PARAMETERS as NAMES
 
 HERE = Path(__file__).resolve().parent
-NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
 
 
 def gain_truth(series, truth):
@@ -69,7 +68,7 @@ def main():
                              "(no test-to-test variation), quiet=1 (ideal sensors), static_ratio=1; see "
                              "fifth_generator.make_series")
     args = parser.parse_args()
-    from _options import signal_overrides, without_motion_sensors
+    from _options import coverage_summary, interval_check, name_values, signal_overrides, without_motion_sensors
 
     overrides = signal_overrides(args.signal)
     sys.path.insert(0, str(HERE))
@@ -86,7 +85,7 @@ def main():
     elif args.generator == "fifth":
         from fifth_generator import make_series as make_fifth
 
-        physics = {name: float(value) for name, value in (item.split("=", 1) for item in args.fifth_override)}
+        physics = name_values(args.fifth_override, "--fifth-override", "spread=0")
 
         def make_series(seed, folder):
             make_fifth(seed, folder, truth_path=os.path.join(folder, "truth.json"), overrides=physics)
@@ -117,10 +116,7 @@ def main():
                "divergences": summary["divergences"], "max_r_hat": summary["max_r_hat"],
                "mass_refit": bool(result.tree.attrs.get("mass_refit")),
                "payload_tests": sum(bool(t.spec.payload_kg) for t in series.tests)}
-        for name in NAMES:
-            p = summary["parameters"][name]
-            row[name] = {"truth": truth[name], "mean": p["mean"], "sd": p["sd"], "q05": p["q05"], "q95": p["q95"],
-                         "covered": bool(p["q05"] <= truth[name] <= p["q95"]), "z": (p["mean"] - truth[name]) / p["sd"]}
+        row.update(interval_check(summary["parameters"], truth))
         if "payload_friction_gain" in summary:
             g = summary["payload_friction_gain"]
             # the valve and fifth generators scale friction by the package's own normal load: kappa = 1
@@ -139,12 +135,7 @@ def main():
               + (f"  kappa {gain['mean']:.2f} [{gain['q05']:.2f}, {gain['q95']:.2f}]"
                  + (f" truth {gain['truth']:.2f}" if gain["truth"] is not None else "") if gain else ""),
               flush=True)
-    summary = {}
-    for name in NAMES:
-        z = np.array([r[name]["z"] for r in rows])
-        summary[name] = {"coverage": float(np.mean([r[name]["covered"] for r in rows])),
-                         "z_mean": float(z.mean()), "z_sd": float(z.std(ddof=1))}
-        print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f} sd {z.std(ddof=1):.2f}")
+    summary = coverage_summary(rows)
     if args.out:
         Path(args.out).write_text(json.dumps({"generator": args.generator, "signals": overrides, "without_acceleration": args.without_acceleration,
                                               "per_test_alpha": args.per_test_alpha,

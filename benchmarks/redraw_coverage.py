@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import shutil
 import sys
@@ -47,20 +46,10 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-NAMES = ("Me", "Ke", "Ce", "alpha", "Fmu")
+from _options import PARAMETERS as NAMES, coverage_summary, interval_check
+from independent_generator import ar1, make_series
+
 COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
-
-
-def ar1_noise(rng, n: int, rate_hz: float, time_constant_s: float, sd: float) -> np.ndarray:
-    """Stationary AR(1) noise of sd `sd` whose correlation falls by e every time_constant_s."""
-    phi = math.exp(-1.0 / (rate_hz * time_constant_s))
-    innovations = rng.normal(0.0, sd * math.sqrt(1.0 - phi * phi), n)
-    out = np.empty(n)
-    out[0] = rng.normal(0.0, sd)
-    for i in range(1, n):
-        out[i] = phi * out[i - 1] + innovations[i]
-    return out
 
 
 def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd: float | None,
@@ -84,7 +73,7 @@ def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd
         moving = np.sign(v) * (np.abs(v) > 1e-6)  # the generator's table rests with v exactly 0
         force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * np.abs(v) ** population["alpha"] + theta["Fmu"]) * moving
         if white_sd is None:
-            force += ar1_noise(rng, len(t), rate, noise["F_tc"], noise["F_ar_sd"]) + rng.normal(0.0, noise["F_white"], len(t))
+            force += ar1(rng, len(t), rate, noise["F_tc"], noise["F_ar_sd"]) + rng.normal(0.0, noise["F_white"], len(t))
         else:
             force += rng.normal(0.0, white_sd, len(t))
         data[:, 2] = force
@@ -113,9 +102,6 @@ def main():
     parser.add_argument("--dir", default="/tmp/bayes_sst_redraw")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
-    sys.path.insert(0, str(HERE))
-    from independent_generator import make_series
-
     from bayes_sst.inference import fit
     from bayes_sst.inference._priors import make_priors
     from bayes_sst.inference._summary import summarize
@@ -151,22 +137,12 @@ def main():
             prior = replace(prior, spread_by_coefficient={**prior.spread_by_coefficient, **pinned})
         result = fit(series, seed=draw, prior=prior)
         summary = summarize(result.tree)
-        row = {"draw": draw, "seconds": time.perf_counter() - started, "converged": summary["converged"]}
-        for name in NAMES:
-            p = summary["parameters"][name]
-            row[name] = {"truth": population[name], "mean": p["mean"], "sd": p["sd"],
-                         "covered": bool(p["q05"] <= population[name] <= p["q95"]),
-                         "z": (p["mean"] - population[name]) / p["sd"]}
+        row = {"draw": draw, "seconds": time.perf_counter() - started, "converged": summary["converged"],
+               **interval_check(summary["parameters"], population)}
         rows.append(row)
         print(f"draw {draw:3d}  " + "  ".join(f"{n} {row[n]['z']:+5.2f}{'' if row[n]['covered'] else '*'}" for n in NAMES)
               + ("" if row["converged"] else "  NOT CONVERGED"), flush=True)
-    summary = {}
-    for name in NAMES:
-        z = np.array([r[name]["z"] for r in rows])
-        summary[name] = {"coverage": float(np.mean([r[name]["covered"] for r in rows])),
-                         "z_mean": float(z.mean()), "z_sd": float(z.std(ddof=1)) if len(z) > 1 else None}
-        print(f"{name:6} coverage {100 * summary[name]['coverage']:5.1f} %  z mean {z.mean():+.2f}"
-              + (f" sd {z.std(ddof=1):.2f}" if len(z) > 1 else ""))
+    summary = coverage_summary(rows)
     if args.out:
         Path(args.out).write_text(json.dumps({"command": " ".join(sys.argv), "seed": args.seed, "mode": args.mode,
                                               "spread": args.spread, "white_sd": args.white_sd,
