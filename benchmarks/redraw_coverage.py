@@ -107,6 +107,10 @@ def main():
     from bayes_sst.inference._summary import summarize
     from bayes_sst.io import load_series
 
+    spread_on = tuple(name for name in args.spread_on.split(",") if name)
+    unknown = set(spread_on) - set(COEFFICIENTS)
+    if unknown:
+        raise SystemExit(f"--spread-on: {sorted(unknown)} are not among {COEFFICIENTS}")
     quiet = os.path.join(args.dir, f"s{args.seed:02d}_ideal_sensors")
     if args.mode == "own-world" and not os.path.exists(os.path.join(quiet, "truth.json")):
         noisy = os.path.join(args.dir, f"s{args.seed:02d}")
@@ -116,10 +120,6 @@ def main():
         truth["noise_of_seed"] = json.loads(Path(noisy, "truth.json").read_text())["noise"]
         Path(quiet, "truth.json").write_text(json.dumps(truth, indent=1))
 
-    spread_on = tuple(name for name in args.spread_on.split(",") if name)
-    unknown = set(spread_on) - set(COEFFICIENTS)
-    if unknown:
-        raise SystemExit(f"--spread-on: {sorted(unknown)} are not among {COEFFICIENTS}")
     rows = []
     for draw in range(args.first_draw, args.first_draw + args.draws):
         folder = os.path.join(args.dir, f"s{args.seed:02d}_draw{draw:03d}")
