@@ -53,13 +53,16 @@ COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
 
 
 def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd: float | None,
-                     spread_on=COEFFICIENTS) -> dict:
+                     spread_on=COEFFICIENTS, theta_stream: bool = False) -> dict:
     """Copy the ideal-sensor series `quiet` to `folder` with every test's force replaced by the
     model's (module docstring), only the coefficients in spread_on varying between tests;
-    returns the truth's population values."""
+    returns the truth's population values. theta_stream: the tests' coefficients come from a
+    random stream of their own instead of the one the noise is drawn from, so that two runs that
+    differ only in the noise (--white-sd) fit the same coefficients."""
     truth = json.loads(Path(quiet, "truth.json").read_text())
     population, rate, noise = truth["population"], truth["fs"], truth["noise_of_seed"]
     rng = np.random.default_rng([draw, 11])
+    coefficient_rng = np.random.default_rng([draw, 12]) if theta_stream else rng
     shutil.rmtree(folder, ignore_errors=True)
     shutil.copytree(quiet, folder)
     manifest = json.loads(Path(folder, "series.json").read_text())
@@ -69,7 +72,8 @@ def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd
         t, u, a = data[:, 0], data[:, 1], data[:, 3]
         v = np.gradient(u, t)
         # every coefficient takes its deviate, so the noise's stream is the same whatever varies
-        theta = {k: population[k] * (1.0 + (spread if k in spread_on else 0.0) * rng.normal()) for k in COEFFICIENTS}
+        theta = {k: population[k] * (1.0 + (spread if k in spread_on else 0.0) * coefficient_rng.normal())
+                 for k in COEFFICIENTS}
         moving = np.sign(v) * (np.abs(v) > 1e-6)  # the generator's table rests with v exactly 0
         force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * np.abs(v) ** population["alpha"] + theta["Fmu"]) * moving
         if white_sd is None:
@@ -97,6 +101,9 @@ def main():
     parser.add_argument("--pinned-spread", action="store_true",
                         help="own-world: fit with the between-test spread prior of the --spread-on "
                              "coefficients pinned at the truth (log sd 0.05), to see what reading the spread costs")
+    parser.add_argument("--theta-stream", action="store_true",
+                        help="own-world: draw the tests' coefficients from a random stream of their own "
+                             "(paired runs: the same coefficients under different noise)")
     parser.add_argument("--white-sd", type=float, default=None,
                         help="own-world: white force noise of this sd (N) in place of the seed's own")
     parser.add_argument("--dir", default="/tmp/bayes_sst_redraw")
@@ -128,7 +135,7 @@ def main():
                 make_series(args.seed, folder, spread_seed=500 + draw, noise_seed=900 + draw)
             population = json.loads(Path(folder, "truth.json").read_text())["population"]
         else:
-            population = own_world_series(quiet, folder, draw, args.spread, args.white_sd, spread_on)
+            population = own_world_series(quiet, folder, draw, args.spread, args.white_sd, spread_on, args.theta_stream)
         started = time.perf_counter()
         series = load_series(folder)
         prior = make_priors("generic", series.table)
@@ -147,6 +154,7 @@ def main():
         Path(args.out).write_text(json.dumps({"command": " ".join(sys.argv), "seed": args.seed, "mode": args.mode,
                                               "spread": args.spread, "white_sd": args.white_sd,
                                               "spread_on": list(spread_on), "pinned_spread": args.pinned_spread,
+                                              "theta_stream": args.theta_stream,
                                               "summary": summary, "rows": rows}, indent=1))
 
 
