@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+# the population values a fit summary reports
+from bayes_sst.inference._summary import POPULATION as PARAMETERS
+
 
 def name_values(items: list[str], flag: str = "--signal", example: str = "reversal_band=0.1") -> dict:
     """{NAME: VALUE} from NAME=VALUE strings given to `flag`: VALUE a number, true/false, or none."""
@@ -19,12 +22,6 @@ def name_values(items: list[str], flag: str = "--signal", example: str = "revers
     return overrides
 
 
-def signal_overrides(items: list[str]) -> dict:
-    """SignalOptions overrides from NAME=VALUE strings (name_values)."""
-    return name_values(items)
-
-
-PARAMETERS = ("Me", "Ke", "Ce", "alpha", "Fmu")
 
 
 def interval_check(parameters: dict, truth: dict) -> dict:

@@ -59,9 +59,9 @@ def main():
     parser.add_argument("--per-test-alpha", action="store_true",
                         help="let the damping exponent vary between tests (fit --per-test-alpha)")
     args = parser.parse_args()
-    from _options import signal_overrides
+    from _options import name_values
 
-    overrides = signal_overrides(args.signal)
+    overrides = name_values(args.signal)
     if args.cutoff_multiple is not None:
         overrides["cutoff_multiple"] = args.cutoff_multiple
     rows = []

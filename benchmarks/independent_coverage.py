@@ -68,9 +68,9 @@ def main():
                              "(no test-to-test variation), quiet=1 (ideal sensors), static_ratio=1; see "
                              "fifth_generator.make_series")
     args = parser.parse_args()
-    from _options import coverage_summary, interval_check, name_values, signal_overrides, without_motion_sensors
+    from _options import coverage_summary, interval_check, name_values, without_motion_sensors
 
-    overrides = signal_overrides(args.signal)
+    overrides = name_values(args.signal)
     sys.path.insert(0, str(HERE))
     if args.generator == "lugre":
         from lugre_generator import generate

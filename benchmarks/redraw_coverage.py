@@ -43,48 +43,64 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from _options import PARAMETERS as NAMES, coverage_summary, interval_check
 from independent_generator import ar1, make_series
 
-COEFFICIENTS = ("Me", "Ke", "Ce", "Fmu")
+from bayes_sst.inference._statistics import COEFFICIENTS
 
 
-def own_world_series(quiet: str, folder: str, draw: int, spread: float, white_sd: float | None,
+class QuietSeries(NamedTuple):
+    """The ideal-sensor series own-world mode writes its forces onto, read once."""
+
+    folder: str
+    truth: dict
+    motion: dict  # test file -> (its columns t, u, F, a; |v|^alpha; sign(v) where the table moves, else 0)
+
+
+def read_quiet(folder: str) -> QuietSeries:
+    """The ideal-sensor series in `folder`: its truth and, per test, the recorded columns with the
+    speed term |v|^alpha and the moving sign sign(v)*(|v| > 1e-6) of the model's force, v = du/dt."""
+    truth = json.loads(Path(folder, "truth.json").read_text())
+    motion = {}
+    for test in json.loads(Path(folder, "series.json").read_text())["tests"]:
+        data = np.loadtxt(Path(folder, test["file"]), delimiter=",", skiprows=1)
+        v = np.gradient(data[:, 1], data[:, 0])
+        moving = np.sign(v) * (np.abs(v) > 1e-6)  # the generator's table rests with v exactly 0
+        motion[test["file"]] = (data, np.abs(v) ** truth["population"]["alpha"], moving)
+    return QuietSeries(folder, truth, motion)
+
+
+def own_world_series(quiet: QuietSeries, folder: str, draw: int, spread: float, white_sd: float | None,
                      spread_on=COEFFICIENTS, theta_stream: bool = False) -> dict:
     """Copy the ideal-sensor series `quiet` to `folder` with every test's force replaced by the
     model's (module docstring), only the coefficients in spread_on varying between tests;
     returns the truth's population values. theta_stream: the tests' coefficients come from a
     random stream of their own instead of the one the noise is drawn from, so that two runs that
     differ only in the noise (--white-sd) fit the same coefficients."""
-    truth = json.loads(Path(quiet, "truth.json").read_text())
-    population, rate, noise = truth["population"], truth["fs"], truth["noise_of_seed"]
+    population, rate, noise = quiet.truth["population"], quiet.truth["fs"], quiet.truth["noise_of_seed"]
     rng = np.random.default_rng([draw, 11])
     coefficient_rng = np.random.default_rng([draw, 12]) if theta_stream else rng
     shutil.rmtree(folder, ignore_errors=True)
-    shutil.copytree(quiet, folder)
-    manifest = json.loads(Path(folder, "series.json").read_text())
-    for test in manifest["tests"]:
-        path = Path(folder, test["file"])
-        data = np.loadtxt(path, delimiter=",", skiprows=1)
-        t, u, a = data[:, 0], data[:, 1], data[:, 3]
-        v = np.gradient(u, t)
+    shutil.copytree(quiet.folder, folder)
+    for file, (recorded, speed_term, moving) in quiet.motion.items():
+        data = recorded.copy()
+        u, a = data[:, 1], data[:, 3]
         # every coefficient takes its deviate, so the noise's stream is the same whatever varies
         theta = {k: population[k] * (1.0 + (spread if k in spread_on else 0.0) * coefficient_rng.normal())
                  for k in COEFFICIENTS}
-        moving = np.sign(v) * (np.abs(v) > 1e-6)  # the generator's table rests with v exactly 0
-        force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * np.abs(v) ** population["alpha"] + theta["Fmu"]) * moving
+        force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * speed_term + theta["Fmu"]) * moving
+        n = len(data)
         if white_sd is None:
-            force += ar1(rng, len(t), rate, noise["F_tc"], noise["F_ar_sd"]) + rng.normal(0.0, noise["F_white"], len(t))
+            force += ar1(rng, n, rate, noise["F_tc"], noise["F_ar_sd"]) + rng.normal(0.0, noise["F_white"], n)
         else:
-            force += rng.normal(0.0, white_sd, len(t))
+            force += rng.normal(0.0, white_sd, n)
         data[:, 2] = force
-        with open(path, "w") as fh:
-            fh.write("t,u,F,a\n")
-            for row in data:
-                fh.write("%.6f,%.9e,%.9e,%.9e\n" % tuple(row))
+        np.savetxt(Path(folder, file), data, fmt=("%.6f", "%.9e", "%.9e", "%.9e"), delimiter=",",
+                   header="t,u,F,a", comments="")
     return population
 
 
@@ -128,6 +144,7 @@ def main():
         Path(quiet, "truth.json").write_text(json.dumps(truth, indent=1))
 
     rows = []
+    quiet_series = read_quiet(quiet) if args.mode == "own-world" else None
     for draw in range(args.first_draw, args.first_draw + args.draws):
         folder = os.path.join(args.dir, f"s{args.seed:02d}_draw{draw:03d}")
         if args.mode == "redraw":
@@ -135,7 +152,7 @@ def main():
                 make_series(args.seed, folder, spread_seed=500 + draw, noise_seed=900 + draw)
             population = json.loads(Path(folder, "truth.json").read_text())["population"]
         else:
-            population = own_world_series(quiet, folder, draw, args.spread, args.white_sd, spread_on, args.theta_stream)
+            population = own_world_series(quiet_series, folder, draw, args.spread, args.white_sd, spread_on, args.theta_stream)
         started = time.perf_counter()
         series = load_series(folder)
         prior = make_priors("generic", series.table)
