@@ -51,7 +51,7 @@ The range 0-15 spans all three cases for hold-down forces up to 14 times the dec
 Why tau, and why not by default: a real table's damping is a power law only approximately, so
 tests that sweep different speed ranges may read different exponents, and with one exponent
 shared by all tests the population alpha is as sure as if they agreed; tau widens alpha by what
-the tests' disagreement shows. Measured (README, Known limitations): on 40 series of an
+the tests' disagreement shows. Measured (docs/measurements.md, Known limitations): on 40 series of an
 independently written simulator whose alpha and Fmu intervals came out some 20 % too narrow (over
 80 series, 6-7 %), tau came out near 0.007 and moved alpha's z sd only from 1.2 to 1.15, so its
 tests agree; on the virtual table it leaves the calibration in 85-95 %, but it costs a 200-test
