@@ -27,7 +27,11 @@ levels kept):
 
 --spread-on lets only some coefficients vary between tests; --pinned-spread fits with their
 between-test spread prior held at the truth, which shows what reading the spread from the data
-costs the intervals.
+costs the intervals. --spread-from-prior draws, for each draw, every varying coefficient's
+between-test sd from the fit's own spread prior (log-normal, relative to the prior's centres),
+so that the coverage averaged over the draws is what an exact posterior must give whatever the
+spread (the population values stay the seed's, which the data pin down far more tightly than
+the prior does); each row records the sds drawn.
 
 Each draw prints z = (mean - truth)/sd per parameter; the end prints z's mean and sd and the
 coverage over the draws. About 15 s a draw (generation 5-10 s in redraw mode, fit 4-8 s).
@@ -75,23 +79,36 @@ def read_quiet(folder: str) -> QuietSeries:
 
 
 def own_world_series(quiet: QuietSeries, folder: str, draw: int, spread: float, white_sd: float | None,
-                     spread_on=COEFFICIENTS, theta_stream: bool = False) -> dict:
+                     spread_on=COEFFICIENTS, theta_stream: bool = False, prior_spread=None) -> dict:
     """Copy the ideal-sensor series `quiet` to `folder` with every test's force replaced by the
     model's (module docstring), only the coefficients in spread_on varying between tests;
     returns the truth's population values. theta_stream: the tests' coefficients come from a
     random stream of their own instead of the one the noise is drawn from, so that two runs that
-    differ only in the noise (--white-sd) fit the same coefficients."""
+    differ only in the noise (--white-sd) fit the same coefficients. prior_spread: (median, log
+    sd, centres) of the fit's spread prior; each coefficient in spread_on then varies by an sd
+    drawn from it (centre times a log-normal draw, from a stream of its own), returned as
+    population["between_test_sd"]."""
     population, rate, noise = quiet.truth["population"], quiet.truth["fs"], quiet.truth["noise_of_seed"]
     rng = np.random.default_rng([draw, 11])
     coefficient_rng = np.random.default_rng([draw, 12]) if theta_stream else rng
+    absolute_sd = None
+    if prior_spread is not None:
+        median, log_sd, centres = prior_spread
+        coefficient_rng = np.random.default_rng([draw, 13])
+        drawn = {k: float(np.exp(np.log(m) + s * coefficient_rng.normal()))
+                 for k, m, s in zip(COEFFICIENTS, median, log_sd)}
+        absolute_sd = {k: drawn[k] * centres[k] if k in spread_on else 0.0 for k in COEFFICIENTS}
     shutil.rmtree(folder, ignore_errors=True)
     shutil.copytree(quiet.folder, folder)
     for file, (recorded, speed_term, moving) in quiet.motion.items():
         data = recorded.copy()
         u, a = data[:, 1], data[:, 3]
         # every coefficient takes its deviate, so the noise's stream is the same whatever varies
-        theta = {k: population[k] * (1.0 + (spread if k in spread_on else 0.0) * coefficient_rng.normal())
-                 for k in COEFFICIENTS}
+        if prior_spread is None:
+            theta = {k: population[k] * (1.0 + (spread if k in spread_on else 0.0) * coefficient_rng.normal())
+                     for k in COEFFICIENTS}
+        else:
+            theta = {k: population[k] + absolute_sd[k] * coefficient_rng.normal() for k in COEFFICIENTS}
         force = theta["Me"] * a + theta["Ke"] * u + (theta["Ce"] * speed_term + theta["Fmu"]) * moving
         n = len(data)
         if white_sd is None:
@@ -101,7 +118,7 @@ def own_world_series(quiet: QuietSeries, folder: str, draw: int, spread: float, 
         data[:, 2] = force
         np.savetxt(Path(folder, file), data, fmt=("%.6f", "%.9e", "%.9e", "%.9e"), delimiter=",",
                    header="t,u,F,a", comments="")
-    return population
+    return population if absolute_sd is None else {**population, "between_test_sd": absolute_sd}
 
 
 def main():
@@ -120,6 +137,9 @@ def main():
     parser.add_argument("--theta-stream", action="store_true",
                         help="own-world: draw the tests' coefficients from a random stream of their own "
                              "(paired runs: the same coefficients under different noise)")
+    parser.add_argument("--spread-from-prior", action="store_true",
+                        help="own-world: each draw's between-test sds drawn from the fit's spread prior "
+                             "instead of --spread (module docstring)")
     parser.add_argument("--white-sd", type=float, default=None,
                         help="own-world: white force noise of this sd (N) in place of the seed's own")
     parser.add_argument("--dir", default="/tmp/bayes_sst_redraw")
@@ -134,6 +154,8 @@ def main():
     unknown = set(spread_on) - set(COEFFICIENTS)
     if unknown:
         raise SystemExit(f"--spread-on: {sorted(unknown)} are not among {COEFFICIENTS}")
+    if args.spread_from_prior and (args.mode != "own-world" or args.pinned_spread):
+        raise SystemExit("--spread-from-prior needs --mode own-world and no --pinned-spread")
     quiet = os.path.join(args.dir, f"s{args.seed:02d}_ideal_sensors")
     if args.mode == "own-world" and not os.path.exists(os.path.join(quiet, "truth.json")):
         noisy = os.path.join(args.dir, f"s{args.seed:02d}")
@@ -145,6 +167,10 @@ def main():
 
     rows = []
     quiet_series = read_quiet(quiet) if args.mode == "own-world" else None
+    prior_spread = None
+    if args.spread_from_prior:
+        generic = make_priors("generic", load_series(quiet).table)
+        prior_spread = (*generic.spread_prior(), dict(generic.centres))
     for draw in range(args.first_draw, args.first_draw + args.draws):
         folder = os.path.join(args.dir, f"s{args.seed:02d}_draw{draw:03d}")
         if args.mode == "redraw":
@@ -152,7 +178,8 @@ def main():
                 make_series(args.seed, folder, spread_seed=500 + draw, noise_seed=900 + draw)
             population = json.loads(Path(folder, "truth.json").read_text())["population"]
         else:
-            population = own_world_series(quiet_series, folder, draw, args.spread, args.white_sd, spread_on, args.theta_stream)
+            population = own_world_series(quiet_series, folder, draw, args.spread, args.white_sd, spread_on,
+                                          args.theta_stream, prior_spread)
         started = time.perf_counter()
         series = load_series(folder)
         prior = make_priors("generic", series.table)
@@ -163,6 +190,8 @@ def main():
         summary = summarize(result.tree)
         row = {"draw": draw, "seconds": time.perf_counter() - started, "converged": summary["converged"],
                **interval_check(summary["parameters"], population)}
+        if "between_test_sd" in population:
+            row["between_test_sd"] = population["between_test_sd"]
         rows.append(row)
         print(f"draw {draw:3d}  " + "  ".join(f"{n} {row[n]['z']:+5.2f}{'' if row[n]['covered'] else '*'}" for n in NAMES)
               + ("" if row["converged"] else "  NOT CONVERGED"), flush=True)
@@ -172,6 +201,7 @@ def main():
                                               "spread": args.spread, "white_sd": args.white_sd,
                                               "spread_on": list(spread_on), "pinned_spread": args.pinned_spread,
                                               "theta_stream": args.theta_stream,
+                                              "spread_from_prior": args.spread_from_prior,
                                               "summary": summary, "rows": rows}, indent=1))
 
 
