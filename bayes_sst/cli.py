@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 import time
 import traceback
+from pathlib import Path
+
+from bayes_sst._argtypes import non_negative_int, non_negative_number, positive_number, share_below_one
 
 _START = time.perf_counter()
 
@@ -137,8 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="write a synthetic test series from the virtual table")
     p.add_argument("--preset", default="sst-paper", help="table preset (default sst-paper)")
     p.add_argument("--out", required=True, help="series folder to create")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--spread", type=float, default=None, help="test-to-test relative sd of Me, Ke, Ce, Fmu")
+    p.add_argument("--seed", type=non_negative_int, default=0)
+    p.add_argument("--spread", type=non_negative_number, default=None, help="test-to-test relative sd of Me, Ke, Ce, Fmu")
     p.add_argument("--name", default=None, help="series name (default from the preset)")
     p.add_argument("--force", action="store_true", help="replace an existing folder")
     p.set_defaults(handler=_cmd_simulate)
@@ -151,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--warmup", type=int, default=300, help="warm-up iterations per chain")
     p.add_argument("--extensions", type=int, default=2,
                    help="times the chains go on for --draws more while R-hat or bulk ESS misses its limit (0: never)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--prior", choices=("generic", "physics"), default="generic",
                    help="generic weak priors, or centred by the series' table description")
     p.add_argument("--shared", action="extend", type=_shared_coefficients, default=[], metavar="NAME[,NAME...]",
@@ -162,12 +167,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="let the damping exponent vary between tests around the population's (its between-test "
                         "sd reported as alpha_between_test_sd): for a damping law that is a power law only "
                         "approximately, read by tests over different speed ranges")
-    p.add_argument("--cutoff-multiple", type=float, default=4.0,
+    p.add_argument("--cutoff-multiple", type=positive_number, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
-    p.add_argument("--reversal-band", type=float, default=None,
+    p.add_argument("--reversal-band", type=share_below_one, default=None,
                    help="leave out samples slower than this share of the peak speed (default 0.1, and "
                         "0.2 for tests without an accelerometer; a value given here applies to every test)")
-    p.add_argument("--reversal-speed", type=float, default=None, metavar="M_PER_S",
+    p.add_argument("--reversal-speed", type=non_negative_number, default=None, metavar="M_PER_S",
                    help="the band reaches at least this speed, up to half the peak speed (default 0.01 m/s: "
                         "friction exceeds its kinetic level below a few Stribeck velocities)")
     add_exclude_argument(p)
@@ -204,11 +209,64 @@ def _raised_elsewhere(exc: BaseException) -> str | None:
     return f"{os.path.relpath(last.filename, os.path.dirname(package))}:{last.lineno} ({last.name})"
 
 
+# the file that marks a folder as a series or a run, and the one command whose output it is:
+# --force lets a command replace a folder of its own kind only
+MARKED_OUTPUTS = {"series.json": "simulate", "posterior.nc": "fit"}
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    return path == folder or folder in path.parents
+
+
+def check_output_against_inputs(args) -> None:
+    """Refuse an --out that would replace what the command reads or where it runs: the input
+    series or run folder (or a folder holding it), the current folder or one above it, or,
+    with --force, a folder of another kind (a series for any command but simulate, a run for
+    any but fit). Why: --force replaces its target whole, and a mistyped --out once deleted
+    the series it was fitting."""
+    from bayes_sst.io._run import OutputTargetError
+
+    out = getattr(args, "out", None)
+    if out is None or str(out).strip() == "":
+        return
+    target = Path(out).resolve()
+    for name in ("series", "run"):
+        given = getattr(args, name, None)
+        if given and _inside(Path(given).resolve(), target):
+            raise OutputTargetError(f"--out {out} would replace the {name} folder {given} this command reads; "
+                                    "choose another output folder")
+    if _inside(Path.cwd().resolve(), target):
+        raise OutputTargetError(f"--out {out} is the current folder or holds it; choose another output folder")
+    if getattr(args, "force", False) and target.is_dir():
+        for marker, owner in MARKED_OUTPUTS.items():
+            if args.command != owner and (target / marker).is_file():
+                kind = "a test series" if owner == "simulate" else "a run of bayes-sst fit"
+                raise OutputTargetError(f"--out {out} holds {kind} ({marker}); --force replaces only an earlier "
+                                        f"output of bayes-sst {args.command}: choose another output folder")
+
+
+def _terminate(signum, frame):
+    # SIGTERM (a scheduler's kill, a closed session) unwinds like Ctrl-C, so that the atomic
+    # writers remove their hidden temporary folders and leave an existing output as it was
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    on_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if on_main_thread else None
+    try:
+        return _run(args)
+    finally:
+        if on_main_thread:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args) -> int:
     from bayes_sst.io import OutputExistsError, SeriesFormatError
 
     try:
+        check_output_against_inputs(args)
         return args.handler(args)
     except (SeriesFormatError, OutputExistsError, ValueError) as exc:
         where = None if isinstance(exc, (SeriesFormatError, OutputExistsError)) else _raised_elsewhere(exc)
@@ -220,6 +278,14 @@ def main(argv=None) -> int:
                   "report it with the series (BAYES_SST_TRACEBACK=1 prints the traceback)", file=sys.stderr)
             if os.environ.get("BAYES_SST_TRACEBACK"):
                 traceback.print_exception(exc)
+        return 2
+    except OSError as exc:
+        # the file system refused (read-only, full, permissions) where no check could foresee it
+        where = exc.filename or "a file"
+        print(f"bayes-sst {args.command}: error: {where}: {exc.strerror or exc}; an existing output was left as it "
+              "was (BAYES_SST_TRACEBACK=1 prints the traceback)", file=sys.stderr)
+        if os.environ.get("BAYES_SST_TRACEBACK"):
+            traceback.print_exception(exc)
         return 2
     except KeyboardInterrupt:
         print(f"bayes-sst {args.command}: interrupted; nothing was written", file=sys.stderr)

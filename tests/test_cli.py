@@ -187,3 +187,116 @@ def test_list_options_take_comma_separated_items_and_repeat_without_swallowing_t
         parser.parse_args(["fit", "SERIES", "--out", "RUN", option, spoiled])
     if named:
         assert named in capsys.readouterr().err
+
+
+def _small_series(folder):
+    from bayes_sst.io import write_series
+    from bayes_sst.twin import default_plan, simulate
+
+    write_series(simulate("sst-paper", seed=2, plan=default_plan()[:3]), folder)
+    return folder
+
+
+def test_force_never_replaces_the_input_or_a_folder_of_another_kind(tmp_path, capsys, monkeypatch):
+    series = _small_series(tmp_path / "series")
+    files = sorted(p.name for p in series.iterdir())
+    # the series itself, a folder holding it, the folder the command runs in
+    monkeypatch.chdir(tmp_path)
+    for out, words in ((series, "would replace the series folder"), (tmp_path, "would replace the series folder"),
+                       (".", "would replace the series folder")):
+        assert main(["fit", str(series), "--out", str(out), "--force"]) == 2
+        assert words in capsys.readouterr().err
+    assert sorted(p.name for p in series.iterdir()) == files
+    # another series, and a run, are not an earlier output of fit or of simulate
+    other = _small_series(tmp_path / "other")
+    assert main(["fit", str(series), "--out", str(other), "--force"]) == 2
+    assert "holds a test series (series.json)" in capsys.readouterr().err
+    assert (other / "series.json").is_file()
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "posterior.nc").write_bytes(b"kept")
+    assert main(["simulate", "--out", str(run), "--force"]) == 2
+    assert "holds a run of bayes-sst fit (posterior.nc)" in capsys.readouterr().err
+    assert main(["report", str(run), "--out", str(run), "--force"]) == 2
+    assert "would replace the run folder" in capsys.readouterr().err
+    assert (run / "posterior.nc").read_bytes() == b"kept"
+    # a file in the output's place is refused before any work, --force or not
+    taken = tmp_path / "notes.txt"
+    taken.write_text("mine")
+    assert main(["fit", str(series), "--out", str(taken), "--force"]) == 2
+    assert "exists and is not a folder" in capsys.readouterr().err
+    assert main(["fit", str(series), "--out", str(taken / "run")]) == 2
+    assert f"cannot write {taken / 'run'}" in capsys.readouterr().err
+    assert taken.read_text() == "mine"
+    assert main(["fit", str(series), "--out", ""]) == 2
+    assert "the output path is empty" in capsys.readouterr().err
+    # nothing hidden left behind by the checks
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("content, words", [
+    (b"[1, 2]", "not a run summary: an array, not a JSON object"),
+    (b"null", "not a run summary: null, not a JSON object"),
+    (b"{}", "not a run summary: parameters, between_test_spread, n_tests"),
+    (b"\xff\xfe{", "byte 0: not UTF-8 text"),
+    (b'{"parameters": [], "between_test_spread": {}, "n_tests": 1, "n_samples": 1, "divergences": 0, '
+     b'"max_r_hat": 1, "min_ess_bulk": 1, "converged": true, "warnings": []}', "parameters: not an object"),
+])
+def test_a_damaged_run_summary_is_named_with_its_fault(tmp_path, capsys, content, words):
+    (tmp_path / "summary.json").write_bytes(content)
+    assert main(["summary", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'summary.json'}: " in err and words in err and "internal" not in err
+
+
+def test_a_damaged_posterior_file_is_named(tmp_path):
+    from bayes_sst.io import SeriesFormatError, read_run_tree
+
+    (tmp_path / "posterior.nc").write_bytes(b"CDF\x01 truncated")
+    with pytest.raises(SeriesFormatError, match="posterior.nc: cannot be read as a run's posterior"):
+        read_run_tree(tmp_path)
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["fit", "S", "--out", "R", "--seed", "-1"], "-1 is negative; a seed is an integer >= 0"),
+    (["simulate", "--out", "R", "--seed", "-3"], "-3 is negative"),
+    (["fit", "S", "--out", "R", "--reversal-band", "2"], "2 is not a share of the peak speed"),
+    (["fit", "S", "--out", "R", "--reversal-band", "-0.5"], "-0.5 is not a share of the peak speed"),
+    (["fit", "S", "--out", "R", "--reversal-speed", "nan"], "'nan' is not a finite number"),
+    (["fit", "S", "--out", "R", "--reversal-speed", "-1"], "-1 is negative"),
+    (["fit", "S", "--out", "R", "--cutoff-multiple", "inf"], "'inf' is not a finite number"),
+    (["classical", "S", "--out", "R", "--alpha", "-1"], "-1 is not a damping exponent"),
+    (["classical", "S", "--out", "R", "--alpha", "nan"], "'nan' is not a finite number"),
+    (["report", "R", "--seed", "-2"], "-2 is negative"),
+])
+def test_bad_option_values_are_refused_with_the_rule(argv, words, capsys):
+    with pytest.raises(SystemExit) as excinfo:
+        main(argv)
+    assert excinfo.value.code == 2
+    assert words in capsys.readouterr().err
+
+
+def test_report_figure_names_are_distinct_and_short():
+    from bayes_sst.report._build import test_figure_name
+
+    assert test_figure_name("S01") == "test_S01.png"
+    names = {test_figure_name(i) for i in ("S 13", "S_13", "S/13", "X" * 300, "X" * 300 + "Y")}
+    assert len(names) == 5
+    assert test_figure_name("S_13") == "test_S_13.png"
+    assert max(len(n) for n in names) <= 80
+
+
+def test_a_run_is_not_read_against_another_series(tmp_path):
+    import xarray as xr
+
+    from bayes_sst.inference._predictive import run_series
+    from bayes_sst.io import load_series
+
+    series = _small_series(tmp_path / "series")
+    name = load_series(series).name
+    tree = xr.DataTree()
+    tree.attrs.update({"series": name, "left_out": "[]"})
+    assert run_series(tree, "report", path=series).name == name
+    tree.attrs["series"] = "another campaign"
+    with pytest.raises(ValueError, match=f"named '{name}', but the run was fitted on 'another campaign'"):
+        run_series(tree, "report", path=series)

@@ -453,6 +453,21 @@ def test_time_not_uniform_gives_values(folder):
     assert_error(folder, "T02.csv", "row 51, column 't'", "time step 0.0105", "median step 0.01", "uniform")
 
 
+def test_time_far_from_zero_is_printed_with_the_digits_that_tell_the_samples_apart(folder):
+    def shift(lines):
+        for k in range(1, len(lines)):
+            cells = lines[k].split(",")
+            if cells[0].strip():
+                cells[0] = repr(1e9 + float(cells[0]))
+                lines[k] = ",".join(cells)
+        cells = lines[50].split(",")
+        cells[0] = repr(1e9 + 0.4905)
+        lines[50] = ",".join(cells)
+
+    edit_csv(folder, "T02.csv", shift)
+    assert_error(folder, "T02.csv", "row 51, column 't'", "from t = 1000000000.48 to 1000000000.49", "uniform")
+
+
 def test_gap_in_time(folder):
     edit_csv(folder, "T02.csv", lambda lines: lines.__delitem__(100))  # drops t = 0.99 s
     assert_error(folder, "T02.csv", "row 101, column 't'", "time step 0.02", "from t = 0.98 to 1", "uniform")

@@ -737,8 +737,13 @@ def test_a_record_that_cannot_be_the_declared_test_is_refused():
     assert prepare_test(record).notes == ()
     # another test's file: the motion is at 1.3 Hz, the manifest says 2.6
     wrong = TestRecord(replace(record.spec, frequency_hz=2.6), record.columns)
-    with pytest.raises(SeriesFormatError, match=r"S01.csv: test 'S01': u moves at 1.3 Hz but frequency_hz is 2.6 Hz"):
+    with pytest.raises(SeriesFormatError, match=r"S01.csv: test 'S01': u's strongest motion above 0.65 Hz is at "
+                                                r"1.3 Hz, but frequency_hz is 2.6 Hz"):
         prepare_test(wrong)
+    # a displacement channel that does not move is said to, not given a frequency
+    still = TestRecord(record.spec, dict(record.columns, u=np.full(len(record.u), 0.001)))
+    with pytest.raises(SeriesFormatError, match=r"test 'S01': u does not move \(peak to peak 0 m\)"):
+        prepare_test(still)
     # u in millimetres
     in_mm = TestRecord(record.spec, dict(record.columns, u=1000.0 * record.u))
     with pytest.raises(SeriesFormatError, match=r"steady amplitude of u is 30 m but amplitude_m is 0.03 m.*metres"):

@@ -6,6 +6,8 @@ the numerical stack, which `run` imports when the command actually runs.
 
 from __future__ import annotations
 
+from bayes_sst._argtypes import damping_exponent, positive_number
+
 CLASSICAL_JSON = "classical.json"
 CLASSICAL_TEXT = "classical.txt"
 
@@ -26,9 +28,9 @@ def add_parser(subparsers):
     p.add_argument("--out", required=True, help="output folder to create")
     p.add_argument("--cycle", type=int, default=-2,
                    help="which steady cycle of each test, Python index (default -2: the second-to-last)")
-    p.add_argument("--cutoff-multiple", type=float, default=4.0,
+    p.add_argument("--cutoff-multiple", type=positive_number, default=4.0,
                    help="zero-phase low-pass cut-off as a multiple of each test's frequency (default 4)")
-    p.add_argument("--alpha", type=float, default=None,
+    p.add_argument("--alpha", type=damping_exponent, default=None,
                    help="fix the damping exponent (e.g. 0.5) instead of fitting it")
     p.add_argument("--force", action="store_true", help="replace an existing output folder")
     p.set_defaults(handler=run)

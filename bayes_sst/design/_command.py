@@ -5,6 +5,8 @@ Only argparse at import time; the numerical stack is imported when the command r
 
 from __future__ import annotations
 
+from bayes_sst._argtypes import non_negative_int
+
 DESIGN_JSON = "design.json"
 DESIGN_TEXT = "design.txt"
 DESIGN_PLOT = "design.png"
@@ -39,7 +41,7 @@ def add_parser(subparsers):
     p.add_argument("--max-acceleration", type=float, default=None, metavar="M_S2", help="acceleration limit, m/s^2")
     p.add_argument("--max-force", type=float, default=None, metavar="N", help="actuator force limit, N")
     p.add_argument("--outcomes", type=int, default=64, help="simulated outcomes per design (default 64)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated outcomes")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="seed of the simulated outcomes")
     p.set_defaults(handler=run)
     return p
 

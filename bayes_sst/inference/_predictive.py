@@ -91,7 +91,14 @@ def run_series(tree, command: str = "report", path=None, exclude=()):
     exclude = as_test_ids(exclude)
     listed = set(manifest_test_ids(path))
     exclude += [x for x in run_left_out(tree) if x in listed and x not in exclude]
-    return load_series(path, exclude=exclude)
+    series = load_series(path, exclude=exclude)
+    fitted = tree.attrs.get("series", "")
+    if fitted and series.name != fitted:
+        # a run read against another series' records gives bands, diagnoses and designs of
+        # nothing; a moved series keeps its manifest's name
+        raise ValueError(f"the series at {path} is named '{series.name}', but the run was fitted on '{fitted}'; "
+                         f"pass the series the run was fitted on (bayes-sst {command} RUN --series SERIES)")
+    return series
 
 
 def run_prepared(tree, series=None) -> list[PreparedTest]:

@@ -35,6 +35,16 @@ def format_number(x: float) -> str:
     return f"{x:.10g}"
 
 
+def format_pair(x: float, y: float) -> tuple[str, str]:
+    """Two floats for one message, with as many digits as it takes to tell them apart (a time
+    axis far from zero, t = 1e12 + 0.005, would print both as 1e+12 at ten digits)."""
+    for digits in range(10, 18):
+        first, second = f"{x:.{digits}g}", f"{y:.{digits}g}"
+        if first != second:
+            break
+    return first, second
+
+
 @dataclass
 class CsvTable:
     """Columns of one CSV, with the map from sample index back to row number in the file."""
@@ -199,18 +209,20 @@ def check_time(table: CsvTable) -> float:
     backwards = np.flatnonzero(steps <= 0)
     if backwards.size:
         i = int(backwards[0]) + 1
+        later, earlier = format_pair(t[i], t[i - 1])
         raise SeriesFormatError(
             table.path, f"row {table.row_of(i)}, column 't'",
-            f"time {format_number(t[i])} does not come after {format_number(t[i - 1])} on row "
+            f"time {later} does not come after {earlier} on row "
             f"{table.row_of(i - 1)}; time must strictly increase",
         )
     step = float(np.median(steps))
     uneven = np.flatnonzero(np.abs(steps - step) > UNIFORM_RTOL * step)
     if uneven.size:
         i = int(uneven[0]) + 1
+        start, end = format_pair(t[i - 1], t[i])
         raise SeriesFormatError(
             table.path, f"row {table.row_of(i)}, column 't'",
-            f"time step {format_number(steps[i - 1])} s (from t = {format_number(t[i - 1])} to {format_number(t[i])}) "
+            f"time step {format_number(steps[i - 1])} s (from t = {start} to {end}) "
             f"differs from the median step {format_number(step)} s by more than {UNIFORM_RTOL:.1%}; "
             "sampling must be uniform",
         )

@@ -7,6 +7,7 @@ draws posterior-predictive replications from the stored draws.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from dataclasses import dataclass, field
@@ -347,8 +348,18 @@ def _safe(name: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in name)
 
 
+FIGURE_ID_CHARS = 60
+
+
 def test_figure_name(test_id: str) -> str:
-    return f"test_{_safe(test_id)}.png"
+    """figures/test_<id>.png; an id that had to be changed or shortened to be a file name gets
+    a digest of itself too, so that ids such as 'S 13' and 'S_13' (or two long ids with one
+    beginning) never share a figure, and the name stays within the file system's limit."""
+    safe = _safe(test_id)
+    if safe == test_id and len(safe) <= FIGURE_ID_CHARS:
+        return f"test_{safe}.png"
+    digest = hashlib.sha1(test_id.encode("utf-8")).hexdigest()[:10]
+    return f"test_{safe[:FIGURE_ID_CHARS]}-{digest}.png"
 
 
 def write_report(report: Report, out, *, overwrite: bool = False) -> Path:

@@ -6,6 +6,8 @@ the numerical stack, which `run` imports when the command actually runs.
 
 from __future__ import annotations
 
+from bayes_sst._argtypes import non_negative_int
+
 import sys
 import time
 from pathlib import Path
@@ -27,7 +29,7 @@ def add_parser(subparsers):
     p.add_argument("--force", action="store_true", help="replace an existing report folder")
     p.add_argument("--draws", type=int, default=400,
                    help="posterior draws used for the bands and checks, thinned evenly (default 400)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the predictive residual draws")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="seed of the predictive residual draws")
     p.add_argument("--series", default=None,
                    help="the run's series folder, when it has moved since the fit (default: the recorded one)")
     from bayes_sst.cli import add_exclude_argument

@@ -536,18 +536,28 @@ def dominant_frequency(u, t, above_hz: float = 0.0) -> float:
     return float(frequencies[searched[int(np.argmax(spectrum[searched]))]])
 
 
+# a record whose u spans no more than this (m) does not move at all: a nanometre, far below
+# any displacement transducer's resolution
+STILL_SPAN_M = 1e-9
+
+
 def _check_frequency(record: TestRecord, where: str) -> None:
     """Raise where the record's motion is at another frequency than the manifest's. Why: a
     file listed under a test of twice its frequency was cut into 12 'cycles' and fitted without
     a word."""
     spec = record.spec
     f = float(spec.frequency_hz)
+    span = float(np.ptp(record.u))
+    if not span > STILL_SPAN_M:
+        raise SeriesFormatError(where, f"test '{spec.id}'",
+                                f"u does not move (peak to peak {span:.3g} m): is this the test's file?")
     # above a quarter of f: a slow drift of u, beyond the linear trend, is no test's motion
     found = dominant_frequency(record.u, record.t, above_hz=0.25 * f)
     if abs(found / f - 1.0) > FREQUENCY_RTOL:
         raise SeriesFormatError(
             where, f"test '{spec.id}'",
-            f"u moves at {found:.3g} Hz but frequency_hz is {f:g} Hz: is this the test's file?")
+            f"u's strongest motion above {0.25 * f:.3g} Hz is at {found:.3g} Hz, but frequency_hz is {f:g} Hz "
+            "(slower motion is not searched): is this the test's file?")
 
 
 def _check_amplitude(record: TestRecord, window: CycleWindow, where: str) -> tuple[str, ...]:
