@@ -243,6 +243,18 @@ def test_per_test_values_and_spread(quiet_series, quiet_result):
     assert set(data["pooled"]) == {"Me", "Ke", "Ce", "alpha", "Fmu"}
 
 
+def test_records_the_fit_refuses_are_refused_here_too(quiet_series):
+    """u in millimetres, or a displacement channel that does not move, gave numbers without a word."""
+    from dataclasses import replace
+
+    first = quiet_series.periodic_tests[0]
+    for columns, words in ((dict(first.columns, u=1000.0 * first.u), "is u in metres"),
+                           (dict(first.columns, u=np.zeros(len(first.u))), "u does not move")):
+        spoiled = replace(quiet_series, tests=(TestRecord(first.spec, columns),) + tuple(quiet_series.tests[1:]))
+        with pytest.raises(SeriesFormatError, match=words):
+            classical_identification(spoiled)
+
+
 # ----------------------------------------------------------------- (e) Ke from the table
 
 

@@ -52,6 +52,7 @@ from bayes_sst.classical._loops import (
     decompose_test,
 )
 from bayes_sst.io import Series, SeriesFormatError
+from bayes_sst.signals._prepare import SignalOptions, check_record
 
 PARAMETERS = ("Me", "Ke", "Ce", "alpha", "Fmu")
 SPREAD_PARAMETERS = ("Me", "Ke", "Ce", "Fmu")
@@ -367,6 +368,10 @@ def classical_identification(
     loops = []
     for record in records:
         source = str(series.path / record.spec.file) if series.path else record.spec.file
+        # the fit's refusals hold here too: a still or mis-scaled u gave Me = 2.4 t and alpha at
+        # its bound without a word
+        check_record(record, SignalOptions(cutoff_multiple=cutoff_multiple or SignalOptions().cutoff_multiple),
+                     source=source)
         loops.append(
             decompose_test(
                 record,

@@ -604,6 +604,24 @@ def _clipping_notes(record: TestRecord, where: str) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def check_record(record: TestRecord, options: SignalOptions = SignalOptions(), *, source: str = "") -> tuple[str, ...]:
+    """prepare_test's checks of a record against its manifest entry, for a method that reads the
+    record without prepare_test (the classical loop method): raise where the record cannot be
+    the declared test (u still, at another frequency, or far from amplitude_m, as u in
+    millimetres is); return the notes where it is merely odd (amplitude somewhat off, a clipped
+    channel). Too few steady cycles are left to the caller's own message."""
+    where = source or record.spec.file
+    _check_frequency(record, where)
+    f = float(record.spec.frequency_hz)
+    cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * record.sample_rate_hz)
+    window = steady_cycles(zero_phase_lowpass(record.u, cutoff, record.sample_rate_hz), record.t, f,
+                           tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles,
+                           keep_at_least=MIN_STEADY_CYCLES)
+    if window is None or window.n_cycles < MIN_STEADY_CYCLES:
+        return ()
+    return _check_amplitude(record, window, where) + _clipping_notes(record, where)
+
+
 def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *, source="") -> PreparedTest:
     """Filter, differentiate, trim and decimate one periodic test (see the module docstring)."""
     spec = record.spec
