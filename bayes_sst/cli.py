@@ -117,7 +117,8 @@ def _classical_beside(series):
     from bayes_sst.classical import classical_identification
 
     try:
-        return classical_identification(series).to_json()["pooled"]
+        # the fit's signal preparation has checked these records against the manifest already
+        return classical_identification(series, check_records=False).to_json()["pooled"]
     except (ValueError, ArithmeticError) as exc:
         _progress(f"classical estimates not available for this series: {exc}")
         return None
@@ -224,7 +225,7 @@ def check_output_against_inputs(args) -> None:
     with --force, a folder of another kind (a series for any command but simulate, a run for
     any but fit). Why: --force replaces its target whole, and a mistyped --out once deleted
     the series it was fitting."""
-    from bayes_sst.io._run import OutputTargetError
+    from bayes_sst.io import OutputTargetError
 
     out = getattr(args, "out", None)
     if out is None or str(out).strip() == "":

@@ -9,7 +9,7 @@ from __future__ import annotations
 from ._atomic import OutputExistsError, atomic_output_dir, write_json_atomic
 from ._errors import SeriesFormatError
 from ._read import load_series
-from ._run import check_run_target, read_run_summary, read_run_tree, write_run
+from ._run import OutputTargetError, check_run_target, read_run_summary, read_run_tree, write_run
 from ._table import positive_number, table_number
 from ._series import (
     FORMAT_ID,
@@ -30,6 +30,7 @@ __all__ = [
     "REQUIRED_COLUMNS",
     "TEST_KINDS",
     "OutputExistsError",
+    "OutputTargetError",
     "Series",
     "SeriesFormatError",
     "TestRecord",

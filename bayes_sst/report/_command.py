@@ -6,11 +6,11 @@ the numerical stack, which `run` imports when the command actually runs.
 
 from __future__ import annotations
 
-from bayes_sst._argtypes import non_negative_int
-
 import sys
 import time
 from pathlib import Path
+
+from bayes_sst._argtypes import non_negative_int
 
 
 def add_parser(subparsers):

@@ -604,6 +604,18 @@ def _clipping_notes(record: TestRecord, where: str) -> tuple[str, ...]:
     return tuple(notes)
 
 
+def _steady_motion(record: TestRecord, options: SignalOptions):
+    """(cutoff, u low-passed at it, the steady-cycle window or None) of a periodic test: the
+    cut-off is cutoff_multiple*f, held below 0.8 of Nyquist."""
+    f = float(record.spec.frequency_hz)
+    fs = record.sample_rate_hz
+    cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * fs)
+    u_f = zero_phase_lowpass(record.u, cutoff, fs)
+    window = steady_cycles(u_f, record.t, f, tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles,
+                           keep_at_least=MIN_STEADY_CYCLES)
+    return cutoff, u_f, window
+
+
 def check_record(record: TestRecord, options: SignalOptions = SignalOptions(), *, source: str = "") -> tuple[str, ...]:
     """prepare_test's checks of a record against its manifest entry, for a method that reads the
     record without prepare_test (the classical loop method): raise where the record cannot be
@@ -612,11 +624,7 @@ def check_record(record: TestRecord, options: SignalOptions = SignalOptions(), *
     channel). Too few steady cycles are left to the caller's own message."""
     where = source or record.spec.file
     _check_frequency(record, where)
-    f = float(record.spec.frequency_hz)
-    cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * record.sample_rate_hz)
-    window = steady_cycles(zero_phase_lowpass(record.u, cutoff, record.sample_rate_hz), record.t, f,
-                           tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles,
-                           keep_at_least=MIN_STEADY_CYCLES)
+    _, _, window = _steady_motion(record, options)
     if window is None or window.n_cycles < MIN_STEADY_CYCLES:
         return ()
     return _check_amplitude(record, window, where) + _clipping_notes(record, where)
@@ -628,13 +636,8 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     where = source or spec.file
     fs = record.sample_rate_hz
     f = float(spec.frequency_hz)
-    cutoff = min(options.cutoff_multiple * f, 0.8 * 0.5 * fs)
     _check_frequency(record, where)
-    u_f = zero_phase_lowpass(record.u, cutoff, fs)
-    window = steady_cycles(
-        u_f, record.t, f, tolerance=options.steady_tolerance, skip_cycles=options.skip_cycles,
-        keep_at_least=MIN_STEADY_CYCLES,
-    )
+    cutoff, u_f, window = _steady_motion(record, options)
     n_cycles = 0 if window is None else window.n_cycles
     if n_cycles < MIN_STEADY_CYCLES:
         raise SeriesFormatError(
