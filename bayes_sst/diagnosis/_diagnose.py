@@ -650,10 +650,11 @@ def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: fl
             break
         t0 = time.perf_counter()
         scores = []
+        wide = _clear_excess(_rms(current.residuals), floor)
         for effect in remaining:
             if round_index > 0 and first_round[effect.name].score <= 0:
                 continue  # an effect that did not help alone is not tried on top of another
-            scores.append(score_effect(scorer, effect, current))
+            scores.append(score_effect(scorer, effect, current, wide_search=wide))
         timings[f"{label}round_{round_index + 1}"] = time.perf_counter() - t0
         scores.sort(key=lambda s: -s.score)
         if round_index == 0:
