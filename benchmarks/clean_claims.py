@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -31,6 +32,20 @@ def _rules(diagnosis: dict) -> dict[str, str]:
     if (diagnosis.get("oil_column") or {}).get("selected"):
         rules["oil_column"] = "oil_column_check"
     return {name: rules.get(name, "?") for name in diagnosis["selected"]}
+
+
+def _first_round_amplitudes(diagnosis: dict) -> dict[str, dict[str, float]]:
+    """{view: {effect: amplitude_z}} of each view's first screening (nothing given): how far each
+    candidate's coefficient stood from zero on a series that has none, the figure a rule on the
+    coefficient alone would have to stay above."""
+    out: dict[str, dict[str, float]] = {}
+    for step in diagnosis.get("steps", []):
+        view = step.get("view", "default")
+        if step.get("given") or view in out:
+            continue
+        out[view] = {c["name"]: round(float(c["amplitude_z"]), 2) for c in step["candidates"]
+                     if c.get("amplitude_z") is not None and math.isfinite(c["amplitude_z"])}
+    return out
 
 
 def main():
@@ -54,7 +69,8 @@ def main():
         row = {"series": os.path.basename(folder), "selected": diagnosis["selected"],
                "rules": _rules(diagnosis), "seconds": round(time.perf_counter() - started, 1),
                "top": [(r["name"], round(r["score"], 1), round(r["score_se"], 1)) for r in diagnosis["ranking"][:3]],
-               "verdict": diagnosis["verdict"]}
+               "verdict": diagnosis["verdict"], "rms_before": diagnosis["rms_before"],
+               "noise_floor": diagnosis["noise_floor"], "amplitude_z": _first_round_amplitudes(diagnosis)}
         rows.append(row)
         print(f"{row['series']:12s} {row['seconds']:5.1f} s  selected {row['selected'] or 'none'}"
               f"{'  ' + str(row['rules']) if row['selected'] else ''}  top {row['top']}", flush=True)
