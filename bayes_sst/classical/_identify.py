@@ -370,13 +370,13 @@ def classical_identification(
     if not records:
         raise SeriesFormatError(where, "tests", "no sine or triangle test: the loop method needs periodic tests")
     loops = []
+    check_options = SignalOptions(cutoff_multiple=cutoff_multiple or SignalOptions().cutoff_multiple)
     for record in records:
         source = str(series.path / record.spec.file) if series.path else record.spec.file
         # the fit's refusals hold here too: a still or mis-scaled u gave Me = 2.4 t and alpha at
         # its bound without a word
         if check_records:
-            check_record(record, SignalOptions(cutoff_multiple=cutoff_multiple or SignalOptions().cutoff_multiple),
-                         source=source)
+            check_record(record, check_options, source=source)
         loops.append(
             decompose_test(
                 record,

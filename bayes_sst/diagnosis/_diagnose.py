@@ -650,7 +650,8 @@ def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: fl
             break
         t0 = time.perf_counter()
         scores = []
-        wide = _clear_excess(_rms(current.residuals), floor)
+        rms_now = _rms(current.residuals)
+        wide = _clear_excess(rms_now, floor)
         for effect in remaining:
             if round_index > 0 and first_round[effect.name].score <= 0:
                 continue  # an effect that did not help alone is not tried on top of another
@@ -660,7 +661,6 @@ def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: fl
         if round_index == 0:
             first_round = {s.effect.name: s for s in scores}
             ranking = [_entry(s) for s in scores]
-        rms_now = _rms(current.residuals)
         step = {"given": [s.effect.name for s in selected],
                 "candidates": [_with_shrink(_entry(s), rms_now, _rms(s.fit.residuals), floor) for s in scores]}
         if label:

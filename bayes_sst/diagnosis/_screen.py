@@ -183,13 +183,11 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit, *, wide_sear
     # the twin, whose residual the delay had taken to its floor)
     starts = [best_setting]
     signs = effect.coefficient_signs(dict(current.base(), **scorer.base_scale))
-    if k and wide_search:
+    if k and (wide_search or not _physical(effect, profile_coef[best_index][0], signs)):
         physical = [i for i in range(len(profile)) if _physical(effect, profile_coef[i][0], signs)]
+        # a physical best is among its own local peaks and is refined already
         starts += [st for st in _local_peaks([profile[i] for i in physical], logm[physical], PHYSICAL_PEAKS)
                    if _key(st) != _key(best_setting)]
-    elif k and not _physical(effect, profile_coef[best_index][0], signs):
-        physical = [i for i in range(len(profile)) if _physical(effect, profile_coef[i][0], signs)]
-        starts += _local_peaks([profile[i] for i in physical], logm[physical], PHYSICAL_PEAKS)
 
     # (setting, log marginal, coefficients) of the latest refine or polish round and the best
     # setting it started from
