@@ -70,6 +70,14 @@ def test_peak_motion_matches_the_sampled_waveform(kind):
     assert np.allclose(np.gradient(y, phase)[1:-1], dy[1:-1], atol=1e-3)
 
 
+@pytest.mark.parametrize("field, option", [("stroke_m", "--stroke"), ("velocity_m_s", "--max-velocity"),
+                                           ("acceleration_m_s2", "--max-acceleration"), ("force_n", "--max-force")])
+def test_a_bad_limit_override_is_refused_under_the_design_commands_option_name(field, option):
+    """A negative --max-force had been refused as '--force_n', an option that does not exist."""
+    with pytest.raises(ValueError, match=f"^{option}: must be a positive number"):
+        table_limits(None, **{field: -5.0})
+
+
 def test_grid_stays_inside_every_limit_and_reaches_one():
     grid = candidate_grid(LIMITS, COEFFS)
     assert len(grid) == 2 * 9 * 5

@@ -68,6 +68,9 @@ _LIMIT_KEYS = {
     "acceleration_m_s2": ("acceleration_m_s2", "max_acceleration", "acceleration"),
     "force_n": ("force_n", "max_force", "force"),
 }
+# the design command's option for each limit, for the message that refuses its value
+LIMIT_OPTIONS = {"stroke_m": "--stroke", "velocity_m_s": "--max-velocity",
+                 "acceleration_m_s2": "--max-acceleration", "force_n": "--max-force"}
 
 
 def _positive_number(value, where: str) -> float | None:
@@ -90,7 +93,7 @@ def table_limits(table: Mapping[str, Any] | None, **overrides: float | None) -> 
         found = next((limits[k] for k in keys if k in limits), None)
         values[field] = _positive_number(found, f"series table.limits.{field}")
         if overrides.get(field) is not None:
-            values[field] = _positive_number(overrides[field], f"--{field}")
+            values[field] = _positive_number(overrides[field], LIMIT_OPTIONS[field])
     return TableLimits(**values)
 
 
