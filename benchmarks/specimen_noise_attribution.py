@@ -23,23 +23,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fifth_generator import make_series  # noqa: E402  (numpy only, as fifth_diagnosis.py runs it)
+
 SEED = 226
 RIVAL = {"specimen_frequency": 18.7, "specimen_damping": 0.05}
 
 
 def _make(folder: Path, overrides: dict | None) -> dict:
-    """Generate the series in its own process (the generator is plain numpy, and this script's
-    process imports JAX through the package)."""
+    """The series in `folder` (generated where missing) and its truth."""
     if not (folder / "truth.json").exists():
-        code = ("import json, sys; sys.path.insert(0, %r); from fifth_generator import make_series; "
-                "make_series(%d, %r, effect='specimen', truth_path=%r, overrides=%s)"
-                % (str(HERE), SEED, str(folder), str(folder / "truth.json"), repr(overrides)))
-        subprocess.run([sys.executable, "-c", code], check=True)
+        make_series(SEED, str(folder), effect="specimen", truth_path=str(folder / "truth.json"), overrides=overrides)
     return json.loads((folder / "truth.json").read_text())
 
 
@@ -58,7 +55,6 @@ def main():
     from bayes_sst.diagnosis._engine import Scorer
     from bayes_sst.diagnosis._screen import fit_base
     from bayes_sst.effects import effect_by_name
-    from bayes_sst.effects._library import sdof_base_shear
     from bayes_sst.io import load_series
 
     effect = truth["effect"]
@@ -68,9 +64,13 @@ def main():
     series = {name: load_series(root / name) for name in ("as_drawn", "quiet_accelerometer")}
     tests = {name: effect_data(s, DIAGNOSIS_SIGNALS) for name, s in series.items()}
 
+    specimen = effect_by_name("specimen")
+    exact = {"specimen_frequency": f_s, "specimen_damping": zeta}
+
     def dynamic_column(t):
-        shear = sdof_base_shear(t.a_record, f_s, zeta, t.sample_rate_hz)[t.lo:]
-        return t.filtered(shear) - t.filtered(t.a_record[t.lo:])
+        """The specimen's shear column per unit mass less its rigid part, the acceleration
+        treated the same way."""
+        return specimen.columns(t, exact, 0.5)[0] - t.filtered(t.a_record[t.lo:])
 
     print("\nper-test least-squares Me (t), force less the specimen's dynamic shear at the truth:")
     print(f"{'test':5} {'Hz':>5}  {'a noisy, x noisy':>16} {'a noisy, x quiet':>16} "
@@ -86,7 +86,6 @@ def main():
                 row.append(coef[0] / 1e3)
         print(f"{noisy.id:5} {noisy.frequency_hz:5.2f}  " + " ".join(f"{v:16.1f}" for v in row))
 
-    specimen = effect_by_name("specimen")
     true_setting = {"specimen_frequency": round(f_s, 2), "specimen_damping": round(zeta, 3)}
     for name, ts in tests.items():
         scorer = Scorer(ts, _scale(series[name], ts))
