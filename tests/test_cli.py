@@ -230,6 +230,10 @@ def test_force_never_replaces_the_input_or_a_folder_of_another_kind(tmp_path, ca
     assert taken.read_text() == "mine"
     assert main(["fit", str(series), "--out", ""]) == 2
     assert "the output path is empty" in capsys.readouterr().err
+    # a run refused after the output check (here: no series) leaves no new parent folders behind
+    assert main(["fit", str(tmp_path / "missing"), "--out", str(tmp_path / "new" / "deeper" / "run")]) == 2
+    assert "missing" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
     # nothing hidden left behind by the checks
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 

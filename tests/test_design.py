@@ -497,10 +497,15 @@ def test_fisher_half_widths_match_the_plain_inverse_and_stay_finite_where_tests_
     expected = (Z90 * plain / centre)[[0, 1, 2, 4, 3]]
     assert fisher_half_widths(post, info) == pytest.approx(expected, rel=1e-6)
     # information along two directions only, large: the plain inverse gives negative variances
-    # here (a run of one test wrote NaN into design.json); the three directions the tests leave
-    # open keep their prior variance, whatever the information's size
+    # (a run of one test wrote NaN into design.json) or, with another LAPACK build, refuses the
+    # matrix as singular; the three directions the tests leave open keep their prior variance,
+    # whatever the information's size
     thin = np.einsum("sni,snj->sij", G[:, :2], G[:, :2])
-    assert np.any(np.diagonal(np.linalg.inv(1e10 * thin + prior), axis1=-2, axis2=-1) < 0)
+    try:
+        plain_thin = np.diagonal(np.linalg.inv(1e10 * thin + prior), axis1=-2, axis2=-1)
+        assert not np.all(np.isfinite(plain_thin) & (plain_thin > 0))
+    except np.linalg.LinAlgError:
+        pass
     for size in (1e10, 1e14):
         widths = fisher_half_widths(post, size * thin)
         assert np.all(np.isfinite(widths)) and np.all(widths > 1.0)

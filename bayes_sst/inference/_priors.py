@@ -72,7 +72,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from bayes_sst.inference._statistics import ALPHA_MAX, ALPHA_MIN, COEFFICIENTS
-from bayes_sst.io import positive_number
+from bayes_sst.io import positive_or_none
 from bayes_sst.physics import (
     STANDARD_GRAVITY,
     coulomb_friction,
@@ -179,7 +179,7 @@ class Priors:
 
 
 def _positive(x) -> bool:
-    return positive_number(x) is not None
+    return positive_or_none(x) is not None
 
 
 def _moving_mass(table: Mapping[str, Any]) -> tuple[float | None, str, dict[str, float]]:

@@ -10,7 +10,7 @@ from ._atomic import OutputExistsError, atomic_output_dir, write_json_atomic
 from ._errors import SeriesFormatError
 from ._read import load_series
 from ._run import OutputTargetError, check_run_target, read_run_summary, read_run_tree, write_run
-from ._table import positive_number, table_number
+from ._table import positive_or_none, table_number
 from ._series import (
     FORMAT_ID,
     OPTIONAL_COLUMNS,
@@ -38,7 +38,7 @@ __all__ = [
     "atomic_output_dir",
     "check_run_target",
     "read_run_summary",
-    "positive_number",
+    "positive_or_none",
     "read_run_tree",
     "table_number",
     "write_run",

@@ -27,7 +27,9 @@ class OutputTargetError(ValueError):
 def check_run_target(path, *, overwrite: bool = False) -> None:
     """Refuse an output folder before any work is done, not after: an existing one (unless
     overwrite), an existing file in its place (a file is never replaced by a folder), and one
-    whose parent cannot be written (found by creating and removing a hidden folder there)."""
+    whose parent cannot be written (found by creating and removing a hidden folder in its nearest
+    existing ancestor: folders that do not exist yet are made only when the output is written, so
+    a run refused later leaves none behind)."""
     target = Path(path)
     if str(path).strip() == "":
         raise OutputTargetError("the output path is empty")
@@ -36,11 +38,15 @@ def check_run_target(path, *, overwrite: bool = False) -> None:
                                 "replaced by one (--force included): choose another path")
     if target.exists() and not overwrite:
         raise OutputExistsError(path, hint="pass --force (overwrite=True) to replace it")
+    ancestor = target.absolute().parent
+    while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise OutputTargetError(f"cannot write {path}: {ancestor} is not a folder")
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        os.rmdir(tempfile.mkdtemp(prefix=f".{target.name}.probe-", dir=target.parent))
+        os.rmdir(tempfile.mkdtemp(prefix=f".{target.name}.probe-", dir=ancestor))
     except OSError as exc:
-        raise OutputTargetError(f"cannot write {path}: {exc.strerror or exc} ({exc.filename or target.parent})") from None
+        raise OutputTargetError(f"cannot write {path}: {exc.strerror or exc} ({exc.filename or ancestor})") from None
 
 
 def write_run(path, tree, summary: dict, text: str, *, overwrite: bool = False) -> Path:

@@ -7,7 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 
-def positive_number(value: Any) -> float | None:
+def positive_or_none(value: Any) -> float | None:
     """value as a float when it is a finite number > 0 (not a bool or a string), else None."""
     if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0:
         return float(value)
@@ -22,4 +22,4 @@ def table_number(table: Any, *path: str) -> float | None:
         if not isinstance(node, Mapping):
             return None
         node = node.get(key)
-    return positive_number(node)
+    return positive_or_none(node)
