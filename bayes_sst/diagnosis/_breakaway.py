@@ -165,8 +165,9 @@ def _window_reading(r, v, smooth_a, start, n, quarter, Me, kinetic, rest,
     the window's r, its rest (the samples of [first, last] inside it), the kinetic friction of
     the motion either side of the rest (old direction before, new after) and the detrended
     mid-stroke r (the noise). damping_noise (_damping_noise, or None for none): the velocity
-    noise's share through the damping term, which the null then holds; and also the fourth
-    value, "damping_share", what it adds to the null's range (over the kinetic friction)."""
+    noise's share through the damping term, which the null then holds; the window (the fourth
+    value) gains "damping_share", what that share adds to the null's range over the kinetic
+    friction."""
     around, mid = r[start:start + n], r[start + quarter:start + quarter + n]
     offsets = np.arange(n) - n // 2
     direction = 1.0 if np.mean(v[start + n // 2:start + n]) >= 0 else -1.0
