@@ -26,16 +26,11 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-EFFECTS = ("stiction", "channel_delay", "specimen", "nonlinear_stiffness", "position_friction", "drift")
-# the withheld effect's reported parameters, compared with the generator's truth of the same name
-PARAMETERS = {
-    "stiction": ("static_ratio",),
-    "channel_delay": ("delay",),
-    "specimen": ("specimen_mass", "specimen_frequency"),
-    "nonlinear_stiffness": ("cubic_stiffness",),
-    "position_friction": ("position_friction",),
-    "drift": ("drift",),
-}
+sys.path.insert(0, str(HERE))
+# the withheld effects' reported parameters and how a ranking reports them: as for the fifth
+from fifth_diagnosis import PARAMETERS, _reported  # noqa: E402  (argparse and json only)
+
+EFFECTS = tuple(PARAMETERS)
 
 
 def _cases(args) -> list[tuple[str, int, str | None]]:
@@ -43,14 +38,6 @@ def _cases(args) -> list[tuple[str, int, str | None]]:
         return [(f"c{seed:03d}", seed, None) for seed in range(args.first_seed, args.first_seed + args.clean)]
     return [(f"e{seed:03d}", seed, EFFECTS[(seed - args.first_seed) % len(EFFECTS)])
             for seed in range(args.first_seed, args.first_seed + args.effects)]
-
-
-def _reported(ranking: list[dict], effect: str) -> dict[str, float]:
-    for entry in ranking:
-        if entry["name"] == effect:
-            return {name: value.get("posterior_mean", value["mean"]) for name, value in entry["params"].items()
-                    if isinstance(value, dict) and value.get("mean") is not None}
-    return {}
 
 
 def main():
@@ -65,7 +52,6 @@ def main():
     parser.add_argument("--no-fit", action="store_true", help="clean series: diagnose only")
     parser.add_argument("--generate-only", action="store_true")
     args = parser.parse_args()
-    sys.path.insert(0, str(HERE))
     from sixth_generator import make_series
 
     cases = _cases(args)
