@@ -747,6 +747,67 @@ def test_accelerometer_noise_does_not_pull_the_base_model_down():
     assert plain["Me"] < 0.9 * TRUTH.Me and plain["Ke"] < 0.9 * TRUTH.Ke
 
 
+def test_the_noise_correction_stops_where_the_design_moments_turn_indefinite():
+    """noise_scale_limit against a bisection on the smallest eigenvalue of W_x - t*C_x: noise in
+    one column (rank 1), in two (an effect column that reads a), and a design with a column that
+    repeats two others (singular W_x, the noise outside its null space). The limit must be
+    the boundary itself, so that a correction scaled to it is continuous in the design."""
+    from bayes_sst.diagnosis._engine import noise_factor, noise_scale_limit
+    from bayes_sst.signals._noise import NOISE_KEEP
+
+    rng = np.random.default_rng(11)
+
+    def smallest(W, C, t):
+        return np.linalg.eigvalsh(W[1:, 1:] - t * C[1:, 1:]).min()
+
+    for case in ("one", "two", "repeated"):
+        Z = rng.standard_normal((6, 80))
+        if case == "repeated":
+            Z[5] = 0.7 * Z[3] - 1.3 * Z[4]
+        W = Z @ Z.T
+        noise = np.zeros((6, 80))
+        noise[1] = 0.4 * rng.standard_normal(80)
+        if case == "two":
+            noise[5] = 0.5 * noise[1] + 0.3 * rng.standard_normal(80)
+        C = noise @ noise.T
+        limit = noise_scale_limit(W, C)
+        low, high = 0.0, 1e6
+        scale = np.abs(np.linalg.eigvalsh(W[1:, 1:])).max()
+        for _ in range(200):
+            middle = 0.5 * (low + high)
+            low, high = (middle, high) if smallest(W, C, middle) >= -1e-12 * scale else (low, middle)
+        assert limit == pytest.approx(low, rel=1e-6), case
+        assert smallest(W, C, 1.001 * limit) < 0.0
+        assert noise_factor(W, C) == pytest.approx(min(1.0, max(0.0, limit - NOISE_KEEP)))
+    assert noise_scale_limit(W, np.zeros_like(W)) == math.inf
+
+
+def test_a_term_that_repeats_the_base_columns_within_each_test_gains_nothing():
+    """Drift's column within a test is -s_j*(Fmu*sign + Ce*damping), the base's own columns: with
+    the drift coefficient near zero the extended model is the base model, and its score must be
+    the Occam cost of one more coefficient, not a gain. Measured before the change: +7.7 nats of
+    log marginal and +10.1 of elpd on this series (a solve on the singular moments had turned the
+    errors-in-variables correction off, and the repeated column took a degree of freedom from
+    the plug-in sigma); after, -3.7 and -1.0."""
+    from dataclasses import replace
+
+    from bayes_sst.diagnosis._data import DIAGNOSIS_SIGNALS
+    from bayes_sst.diagnosis._engine import Scorer
+    from bayes_sst.diagnosis._screen import fit_base
+    from bayes_sst.effects import FORCE_EFFECTS
+    from bayes_sst.twin._noise import SensorNoise
+
+    series = simulate("sst-paper", seed=5, spread=0.02, noise=replace(SensorNoise(), a_white=0.12))
+    tests = effect_data(series, replace(DIAGNOSIS_SIGNALS, periodic_acceleration=False))
+    scorer = Scorer(tests)
+    base = fit_base(scorer)
+    drift = next(e for e in FORCE_EFFECTS if e.name == "drift")
+    extended = scorer.fit([(drift, {})], base.alpha, spread=base.spread)
+    assert abs(extended.coefficient("drift.drift")) < 2.0 * extended.mu_sd[-1]
+    assert extended.log_marginal - base.log_marginal < 0.0
+    assert float(np.sum(extended.elpd - base.elpd)) < 2.0
+
+
 def test_force_read_later_through_the_reversal_weight():
     # force_at(d) = filter(w(t)*F(t + d)) at the kept samples, F(t + d) between samples by a
     # cubic spline: against the same expression with F known in closed form
