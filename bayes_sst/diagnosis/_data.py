@@ -220,10 +220,7 @@ def effect_data(series: Series, options: SignalOptions = DIAGNOSIS_SIGNALS) -> l
         a_noise = None
         rng = np.random.default_rng(zlib.crc32(p.id.encode()))
         if p.acceleration_measured and p.acceleration_noise_known:
-            a_noise = p.raw_acceleration_noise(NOISE_DRAWS, hi - lo, rng)
-            if p.acceleration_averaged:
-                local = p.window._replace(start=p.window.start - lo, stop=p.window.stop - lo)
-                a_noise[:, local.start : local.stop] = periodic_component(a_noise, local)
+            a_noise = p.averaged_acceleration_noise(NOISE_DRAWS, rng)
         elif not p.acceleration_measured:
             a_noise = derived_acceleration_noise(record.u if recorded_v is None else recorded_v, p.velocity_full,
                                                  cutoff, fs, lo, hi, rng, of_velocity=recorded_v is not None)

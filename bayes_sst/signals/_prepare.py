@@ -258,6 +258,16 @@ class PreparedTest:
             noise += self.acceleration_noise_excess.draws(n_draws, length, self.sample_rate_hz, rng)
         return noise
 
+    def averaged_acceleration_noise(self, n_draws: int, rng) -> np.ndarray:
+        """(n_draws, filter span) draws of raw_acceleration_noise, replaced by their
+        cycle-synchronous average inside the steady window where the recorded acceleration was."""
+        lo, hi = self.filter_span
+        noise = self.raw_acceleration_noise(n_draws, hi - lo, rng)
+        if self.acceleration_averaged:
+            local = self.window._replace(start=self.window.start - lo, stop=self.window.stop - lo)
+            noise[:, local.start : local.stop] = periodic_component(noise, local)
+        return noise
+
     def acceleration_noise(self, n_draws: int, seed: int = 0) -> np.ndarray:
         """(n_draws, len(index)) draws of the accelerometer's noise (raw_acceleration_noise)
         treated exactly as the recorded acceleration was: cycle-synchronous average (when it was
@@ -268,10 +278,7 @@ class PreparedTest:
         if not self.acceleration_noise_known:
             return np.zeros((n_draws, len(self.index)))
         lo, hi = self.filter_span
-        noise = self.raw_acceleration_noise(n_draws, hi - lo, np.random.default_rng(seed))
-        if self.acceleration_averaged:
-            local = self.window._replace(start=self.window.start - lo, stop=self.window.stop - lo)
-            noise[:, local.start : local.stop] = periodic_component(noise, local)
+        noise = self.averaged_acceleration_noise(n_draws, np.random.default_rng(seed))
         if self.weight_full is not None:
             noise = noise * self.weight_full[lo:hi]
         filtered = zero_phase_lowpass(noise, self.cutoff_hz, self.sample_rate_hz, axis=-1)
