@@ -73,9 +73,9 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
     the stroke view, under MIN_SCORE, the coefficient 4.5 sds from zero (no series without a
     cubic went past 2.9).
     Selected by COEFFICIENT_Z when it is the round's best candidate and lowers its view's RMS;
-    not when a higher-scoring candidate exists (strut inertia is u^3 in shape within a sine), not below the z, not with a
-    negative score, and the same numbers do not select the hinge, whose z reached 7.6 beside an
-    unmodelled delay."""
+    not when a higher-scoring candidate exists (strut inertia is u^3 in shape within a sine),
+    not below the z, not with a negative score, and the same numbers do not select the hinge,
+    whose z reached 7.6 beside an unmodelled delay."""
     from types import SimpleNamespace
 
     from bayes_sst.diagnosis._diagnose import COEFFICIENT_Z, _entry, _selection_rule

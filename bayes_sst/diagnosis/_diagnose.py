@@ -166,7 +166,7 @@ COEFFICIENT_Z = 4.0
 # 3.2 +- 9.4 nats) that held the per-test stiffness's scatter (the Me, Ke spread fell from 6 to
 # 3.5 %) and raised that view's RMS 0.25 %; the true weak cubics lowered it: the twin's 3x the
 # gas strut's 0.5-0.9 % (seeds 21, 31, 32, z 4.7-6.6), the first independent generator's
-# K'e = 1e6 N/m 0.25 % and 1.4 % (seeds 0, 1, z 4.5 and 15.6), the sixth's and fifth's 3-49 %.
+# K'e = 1e6 N/m 0.25-1.4 % (seeds 0-4, z 4.5-15.6), the sixth's and fifth's 3-49 %.
 # The sandwich sd was no test: it was 1.6 times the posterior sd for the false cubic and for
 # the twin's true one alike. Drift changes the per-test coefficients, not the residual (its
 # true 5 % raised that RMS 0.3 %), so it keeps the rule above alone
