@@ -71,6 +71,13 @@ def time_derivative(x, sample_rate_hz: float, *, axis: int = -1):
     return np.gradient(np.asarray(x, dtype=float), 1.0 / sample_rate_hz, axis=axis)
 
 
+def running_integral(x, sample_rate_hz: float) -> np.ndarray:
+    """The trapezoidal running integral of a 1-D record from its first sample:
+    I_0 = 0, I_k = I_(k-1) + (x_(k-1) + x_k)/(2 fs)."""
+    x = np.asarray(x, dtype=float)
+    return np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]))]) / sample_rate_hz
+
+
 @lru_cache(maxsize=64)
 def smoothed_variance(sigma_samples: float) -> float:
     """Variance, in samples^2, of scipy's gaussian_filter1d kernel of sd sigma_samples (sampled

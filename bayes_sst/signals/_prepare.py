@@ -80,7 +80,8 @@ from bayes_sst.io._series import sample_rate_of
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import lowpass_power_gain, second_derivative, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import (lowpass_power_gain, running_integral, second_derivative, time_derivative,
+                                       zero_phase_lowpass)
 from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
@@ -380,8 +381,7 @@ def complementary_velocity(smoothed_v: np.ndarray, a: np.ndarray, sample_rate_hz
     """
     from scipy.ndimage import gaussian_filter1d
 
-    a = np.asarray(a, dtype=float)
-    integral = np.concatenate([[0.0], np.cumsum(0.5 * (a[1:] + a[:-1]))]) / sample_rate_hz
+    integral = running_integral(a, sample_rate_hz)
     return smoothed_v + integral - gaussian_filter1d(integral, smoothing_s * sample_rate_hz)
 
 
