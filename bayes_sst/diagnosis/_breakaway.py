@@ -90,7 +90,7 @@ import numpy as np
 from bayes_sst.diagnosis._engine import ModelFit
 from bayes_sst.effects import EffectData
 from bayes_sst.io import Series
-from bayes_sst.signals._filters import running_integral, time_derivative, zero_phase_lowpass
+from bayes_sst.signals._filters import time_derivative, velocity_with_acceleration_above, zero_phase_lowpass
 
 # the excess, as a share of the kinetic friction, and its z that select stiction by this check
 BREAKAWAY_EXCESS = 0.15
@@ -148,8 +148,8 @@ def reversal_velocity(smooth_u: np.ndarray, a: np.ndarray, cutoff_hz: float, fs:
     37: alpha 0.34, Ce 44 kN, Fk 4.5 kN, 500 Hz) the spike was 14-17 kN at the sweeping reversals
     of its 1-5 Hz tests, the reading over every reversal 0.98 at z 6.2, and stiction was selected
     on a series without any. The integrated acceleration has the corner."""
-    integral = running_integral(a, fs)
-    return time_derivative(smooth_u, fs) + integral - zero_phase_lowpass(integral, cutoff_hz, fs)
+    return velocity_with_acceleration_above(time_derivative(smooth_u, fs), a, fs,
+                                            lambda x: zero_phase_lowpass(x, cutoff_hz, fs))
 
 
 def _damping_noise(v, slow_v, start, n, quarter, Ce, alpha) -> np.ndarray:

@@ -78,6 +78,15 @@ def running_integral(x, sample_rate_hz: float) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]))]) / sample_rate_hz
 
 
+def velocity_with_acceleration_above(low_v: np.ndarray, a, sample_rate_hz: float, lowpass) -> np.ndarray:
+    """v = low_v + (I - L)(integral of a): a velocity that holds the motion below the low-pass L
+    (low_v, already L applied to the velocity) and takes the band above it from the recorded
+    acceleration's running integral, which keeps corners L rounds. L must pass a straight line,
+    the integral of an accelerometer offset, so that the offset drops out."""
+    integral = running_integral(a, sample_rate_hz)
+    return low_v + integral - lowpass(integral)
+
+
 @lru_cache(maxsize=64)
 def smoothed_variance(sigma_samples: float) -> float:
     """Variance, in samples^2, of scipy's gaussian_filter1d kernel of sd sigma_samples (sampled

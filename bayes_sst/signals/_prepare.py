@@ -80,8 +80,8 @@ from bayes_sst.io._series import sample_rate_of
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import (lowpass_power_gain, running_integral, second_derivative, time_derivative,
-                                       zero_phase_lowpass)
+from bayes_sst.signals._filters import (lowpass_power_gain, second_derivative, time_derivative,
+                                       velocity_with_acceleration_above, zero_phase_lowpass)
 from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 
 MIN_STEADY_CYCLES = 3
@@ -381,8 +381,8 @@ def complementary_velocity(smoothed_v: np.ndarray, a: np.ndarray, sample_rate_hz
     """
     from scipy.ndimage import gaussian_filter1d
 
-    integral = running_integral(a, sample_rate_hz)
-    return smoothed_v + integral - gaussian_filter1d(integral, smoothing_s * sample_rate_hz)
+    return velocity_with_acceleration_above(smoothed_v, a, sample_rate_hz,
+                                            lambda x: gaussian_filter1d(x, smoothing_s * sample_rate_hz))
 
 
 def _derivative_noise(x: np.ndarray, fs: float, cutoff: float, to_velocity) -> float:
