@@ -47,6 +47,35 @@ def test_white_noise_sd_reads_the_noise_and_not_the_motion(f):
         assert white_noise_sd(a, where=mid_stroke) > 0.2 * sigma
 
 
+@pytest.mark.parametrize("order", [2, 4])
+def test_white_noise_sd_reads_white_noise_at_either_order(order):
+    noise = 0.04 * np.random.default_rng(3).standard_normal(20000)
+    assert white_noise_sd(noise, order=order) == pytest.approx(0.04, rel=0.03)
+    every_third = np.arange(noise.size) % 3 == 0
+    assert white_noise_sd(noise, where=every_third, order=order) == pytest.approx(0.04, rel=0.05)
+
+
+def test_fourth_differences_leave_out_the_real_motion_above_the_band():
+    """A 3 Hz test at 200 Hz whose deck also moves at 30 Hz (a servo loop's or an oil column's
+    response, 0.06 m/s^2 peak: real motion, which the force carries as well) beside 0.03 m/s^2
+    of white sensor noise. Above the 12 Hz band the second differences count the 30 Hz motion
+    as noise (gain (2 sin(w/2))^2/sqrt(6) = 0.335 against the noise's 1: 0.03 reads about
+    0.033), the fourth differences hardly (0.080: about 0.0302)."""
+    f, sigma = 3.0, 0.03
+    t, a, v = _sine_with_friction_steps(f, 12)
+    motion = a + 0.06 * np.sin(2 * np.pi * 30.0 * t + 0.4)
+    mid_stroke = np.abs(v) >= 0.6 * np.abs(v).max()
+    readings = {2: [], 4: []}
+    for seed in range(6):
+        x = motion + sigma * np.random.default_rng(seed).standard_normal(len(t))
+        for order in readings:
+            readings[order].append(white_noise_sd(x - zero_phase_lowpass(x, 4 * f, FS), where=mid_stroke, order=order))
+    second, fourth = np.mean(readings[2]), np.mean(readings[4])
+    assert second > 1.06 * sigma
+    assert fourth == pytest.approx(sigma, rel=0.03)
+    assert abs(fourth - sigma) < 0.5 * abs(second - sigma)
+
+
 def test_white_noise_sd_of_a_too_short_record_is_zero():
     assert white_noise_sd(np.ones(4)) == 0.0
 

@@ -24,6 +24,7 @@ from bayes_sst.signals import (
     acceleration_from_velocity,
     friction_load,
     fundamental_phase,
+    kept_indices,
     lowpass_sos,
     periodic_component,
     prepare_series,
@@ -485,6 +486,7 @@ def test_prepare_test_decimates_to_two_samples_per_cutoff_period(clean):
     for record, _ in clean:
         f = record.spec.frequency_hz
         prep = prepare_test(record)
+        staggered = prepare_test(record, SignalOptions(stagger_phases=True))
         # D = floor(fs / (2 * 4 f)), so samples per cycle fs/(f D) lie in [8, 8*(D+1)/D)
         per_cycle = FS / (f * prep.decimation)
         assert prep.decimation == int(FS / (2 * 4.0 * f))
@@ -492,9 +494,33 @@ def test_prepare_test_decimates_to_two_samples_per_cutoff_period(clean):
         assert per_cycle == pytest.approx(8.0, rel=0.02)
         assert np.all(np.diff(prep.index) == prep.decimation)
         assert len(prep.index) == pytest.approx(N_STEADY * per_cycle, abs=1.0)
+        # the staggered grid (kept_indices) steps by D(1 + 1/N), rounded down to whole samples
+        slipped = prep.decimation * (1 + 1 / len(prep.index))
+        assert set(np.diff(staggered.index)) <= {int(slipped), int(slipped) + 1}
+        assert len(staggered.index) in (len(prep.index), len(prep.index) - 1)
         # a different multiple changes it accordingly
         prep6 = prepare_test(record, SignalOptions(cutoff_multiple=6.0))
         assert FS / (f * prep6.decimation) == pytest.approx(12.0, rel=0.02)
+
+
+def test_kept_samples_of_a_phase_locked_test_spread_over_new_phases_every_cycle():
+    """fs = 1000 Hz, f = 1 Hz, fc = 4 Hz: D = 125 and the period is exactly 8 steps, so every
+    cycle of the plain grid falls on the same 8 phases; the staggered grid slips by D/n per
+    cycle, and its n = 5 cycles fill 40 distinct phases with no gap wider than 28 samples
+    (the slip is spread over the steps, 3.125 samples each, so the gaps are 25 and, once a
+    cycle, 28; the plain grid's are 125)."""
+    period, step, n_cycles = 1000, 125, 5
+    plain = kept_indices(300, 300 + n_cycles * period, step, stagger=False)
+    staggered = kept_indices(300, 300 + n_cycles * period, step)
+    assert len(plain) == 40 and len(np.unique((plain - 300) % period)) == 8
+    assert len(staggered) == 40 and staggered[-1] < 300 + n_cycles * period
+    phases = np.sort((staggered - 300) % period)
+    gaps = np.diff(np.append(phases, phases[0] + period))
+    assert len(np.unique(phases)) == 40 and gaps.max() == 28
+    assert set(np.diff(staggered)) == {128, 129}
+    # nothing to stagger with one sample or a step of one sample
+    np.testing.assert_array_equal(kept_indices(7, 8, 125), [7])
+    np.testing.assert_array_equal(kept_indices(0, 10, 1), np.arange(10))
 
 
 @pytest.mark.parametrize("band", [0.2, 0.5])

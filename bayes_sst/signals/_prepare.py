@@ -57,8 +57,8 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    than a quarter sample over the window (the motion's period is not the test frequency's).
    The average only reaches cycles a whole number of samples apart, so at most test
    frequencies it leaves much or all of the noise; the noise's level is therefore also read
-   off the record (white_noise_sd of a less its low-pass, mid-stroke), together with any
-   in-band drift beyond that white level (coloured_noise_excess: a drifting accelerometer's
+   off the record (white_noise_sd, from fourth differences, of a less its low-pass,
+   mid-stroke), together with any in-band drift beyond that white level (coloured_noise_excess: a drifting accelerometer's
    noise sits at a slow test's own frequencies), and the inference subtracts what that noise
    adds to its moments (inference.lagged_moments, errors in variables). See README, known
    limitations.
@@ -136,6 +136,11 @@ class SignalOptions:
         noise beyond its white level (a drifting accelerometer; signals.coloured_noise_excess).
     drift_displacement_covariate : the displacement's second derivative is one of that
         estimate's covariates (_drift_of_accelerometer).
+    noise_difference_order : the differences (2 or 4) from which the accelerometer's white
+        noise is read (signals._noise.white_noise_sd says why 4).
+    stagger_phases : let the decimation grid slip by one step over the steady window, so that
+        the cycles of a test whose period is a whole number of steps are sampled at new phases
+        (kept_indices; off by default, it says why).
     """
 
     cutoff_multiple: float = 4.0
@@ -158,6 +163,8 @@ class SignalOptions:
     coloured_accelerometer_noise: bool = True
     drift_displacement_covariate: bool = True
     check_accelerometer: bool = True
+    stagger_phases: bool = False
+    noise_difference_order: int = 4
 
     def band_for(self, measured_acceleration: bool) -> "SignalOptions":
         """These options with the reversal band that applies to a test with or without a
@@ -325,6 +332,32 @@ def reversal_band_share(peak_speed: float, options: "SignalOptions") -> float:
     if peak_speed <= 0.0:
         return options.reversal_band
     return min(max(options.reversal_band, options.reversal_speed / peak_speed), max(options.reversal_band, 0.5))
+
+
+def kept_indices(start: int, stop: int, step: int, stagger: bool = True) -> np.ndarray:
+    """The record indices of the kept samples in [start, stop): every step-th sample, or, with
+    stagger, j*step + floor(j*step/N) for j = 0, 1, ... (N = the unstaggered count), a grid
+    that slips by one step over the window.
+
+    Why stagger: at a lab's round test frequencies and sampling rates the period is a whole
+    number of steps, so every cycle is sampled at the same phases, and the steady cycles of a
+    test add no phase, hence no new speed, to the few that tell the power law from the
+    Coulomb step. Slipping the grid by step/n per cycle spreads n cycles' samples over n times
+    as many phases, as a test frequency that is not a round number does by itself. The grid
+    stays uniform up to a sample (spacing step*(1 + 1/N), rounded down), so the AR(1)
+    residual still sees evenly spaced pairs, and it keeps N or N - 1 samples.
+
+    Off by default (SignalOptions.stagger_phases): measured on 2026-11-30 (docs/measurements.md)
+    it narrowed alpha's and Fmu's intervals by about a third and put Fmu within 3 % on 31 of 40
+    clean series of the sixth simulator instead of 24, but the bias it uncovered grew as fast:
+    Me's and Ke's coverage there fell from 90 and 88 % to 78 and 80 %, the fifth simulator's
+    alpha and Fmu z sd rose from 1.2 to 1.5, and the virtual table's Ce coverage from 90 to 84 %."""
+    n = len(range(start, stop, step))
+    j = np.arange(n)
+    index = start + j * step
+    if stagger and n > 1 and step > 1:
+        index = index + (j * step) // n
+    return index[index < stop]
 
 
 def reversal_weight(velocity: np.ndarray, peak_speed: float, options: "SignalOptions") -> np.ndarray:
@@ -694,7 +727,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
         averaged = True
     # the tolerance: a whole ratio must not truncate to one less from rounding in the last digit
     decimation = max(1, int(fs / (options.samples_per_cutoff * cutoff) + 1e-9))
-    index = np.arange(window.start, window.stop, decimation)
+    index = kept_indices(window.start, window.stop, decimation, options.stagger_phases)
     speed = np.abs(v_f[window.start : window.stop])
     peak_speed = float(np.percentile(speed, 99.5))
     band_edge = reversal_band_share(peak_speed, options) * peak_speed
@@ -710,7 +743,7 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     if measured_a is not None and options.accelerometer_noise:
         # less the motion's band, whose curvature shows in second differences at high f/fs
         above_band = (np.asarray(measured_a, dtype=float) - a_low)[window.start : window.stop]
-        noise_sd = mid_stroke_noise_sd(above_band, speed)
+        noise_sd = mid_stroke_noise_sd(above_band, speed, options.noise_difference_order)
         if options.coloured_accelerometer_noise:
             noise_excess = _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, noise_sd,
                                                    options.drift_displacement_covariate)
