@@ -200,6 +200,10 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).check_accelerometer
     older = {k: v for k, v in current.items() if k != "check_accelerometer"}
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).check_accelerometer is False
+    # and runs from before the fourth-difference noise read used second differences
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).noise_difference_order == 4
+    older = {k: v for k, v in current.items() if k != "noise_difference_order"}
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).noise_difference_order == 2
 
 
 def _white_force_noise_series(seed: int = 1):

@@ -45,7 +45,8 @@ def run_signal_options(tree) -> SignalOptions:
     one from before the band's speed floor (no "reversal_speed") had none, and one from before
     the accelerometer-drift estimate (no "coloured_accelerometer_noise"), its displacement
     covariate (no "drift_displacement_covariate") or each test's free constant (no
-    "free_constant") was fitted without it.
+    "free_constant") was fitted without it; one from before the fourth-difference noise read (no
+    "noise_difference_order") read the accelerometer's noise from second differences.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -62,6 +63,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("coloured_accelerometer_noise", False)
     recorded.setdefault("drift_displacement_covariate", False)
     recorded.setdefault("free_constant", False)
+    recorded.setdefault("noise_difference_order", 2)
     return SignalOptions(**recorded)
 
 
