@@ -78,6 +78,9 @@ def test_fourth_differences_leave_out_the_real_motion_above_the_band():
 
 def test_white_noise_sd_of_a_too_short_record_is_zero():
     assert white_noise_sd(np.ones(4)) == 0.0
+    assert white_noise_sd(np.ones(4), order=4) == 0.0
+    with pytest.raises(ValueError, match="order must be one of"):
+        white_noise_sd(np.ones(40), order=3)
 
 
 def _record(a, u, F, t, f, test_id="S01"):

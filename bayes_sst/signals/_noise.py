@@ -57,6 +57,8 @@ def white_noise_sd(x, where=None, order: int = 2) -> float:
     where (same length as x): use only the d centred on these samples, when at least
     MIN_SAMPLES of them are marked.
     """
+    if order not in DIFFERENCE_STENCILS:
+        raise ValueError(f"white_noise_sd: order must be one of {sorted(DIFFERENCE_STENCILS)}, got {order!r}")
     stencil = np.asarray(DIFFERENCE_STENCILS[order])
     x = np.asarray(x, dtype=float)
     if x.size < 5:

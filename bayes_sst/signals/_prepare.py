@@ -58,10 +58,10 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    The average only reaches cycles a whole number of samples apart, so at most test
    frequencies it leaves much or all of the noise; the noise's level is therefore also read
    off the record (white_noise_sd, from fourth differences, of a less its low-pass,
-   mid-stroke), together with any in-band drift beyond that white level (coloured_noise_excess: a drifting accelerometer's
-   noise sits at a slow test's own frequencies), and the inference subtracts what that noise
-   adds to its moments (inference.lagged_moments, errors in variables). See README, known
-   limitations.
+   mid-stroke), together with any in-band drift beyond that white level
+   (coloured_noise_excess: a drifting accelerometer's noise sits at a slow test's own
+   frequencies), and the inference subtracts what that noise adds to its moments
+   (inference.lagged_moments, errors in variables). See README, known limitations.
 6. Decimation. Inside the steady window every D-th sample is kept, D chosen so the kept
    rate is about 2*fc: the filtered residual is then close to white over the kept band and
    an AR(1) term can model what colour remains, instead of facing the steep roll-off of a
