@@ -511,7 +511,7 @@ def test_kept_samples_of_a_phase_locked_test_spread_over_new_phases_every_cycle(
     cycle, 28; the plain grid's are 125)."""
     period, step, n_cycles = 1000, 125, 5
     plain = kept_indices(300, 300 + n_cycles * period, step, stagger=False)
-    staggered = kept_indices(300, 300 + n_cycles * period, step)
+    staggered = kept_indices(300, 300 + n_cycles * period, step, stagger=True)
     assert len(plain) == 40 and len(np.unique((plain - 300) % period)) == 8
     assert len(staggered) == 40 and staggered[-1] < 300 + n_cycles * period
     phases = np.sort((staggered - 300) % period)
@@ -519,8 +519,8 @@ def test_kept_samples_of_a_phase_locked_test_spread_over_new_phases_every_cycle(
     assert len(np.unique(phases)) == 40 and gaps.max() == 28
     assert set(np.diff(staggered)) == {128, 129}
     # nothing to stagger with one sample or a step of one sample
-    np.testing.assert_array_equal(kept_indices(7, 8, 125), [7])
-    np.testing.assert_array_equal(kept_indices(0, 10, 1), np.arange(10))
+    np.testing.assert_array_equal(kept_indices(7, 8, 125, stagger=True), [7])
+    np.testing.assert_array_equal(kept_indices(0, 10, 1, stagger=True), np.arange(10))
 
 
 @pytest.mark.parametrize("band", [0.2, 0.5])

@@ -63,12 +63,11 @@ def white_noise_sd(x, where=None, order: int = 2) -> float:
     x = np.asarray(x, dtype=float)
     if x.size < 5:
         return 0.0
-    if order == 2:
-        d = x[2:] - 2.0 * x[1:-1] + x[:-2]
-    else:
-        d = np.convolve(x, stencil, mode="valid")  # symmetric stencils: no flip needed
+    width = len(stencil)
+    # summed from the last tap: for order 2 this is x[2:] - 2 x[1:-1] + x[:-2] as it always was
+    d = sum(c * x[k : x.size - width + 1 + k] for k, c in reversed(list(enumerate(stencil))))
     if where is not None:
-        half = len(stencil) // 2
+        half = width // 2
         chosen = np.asarray(where, dtype=bool)[half : x.size - half]
         if chosen.sum() >= MIN_SAMPLES:
             d = d[chosen]

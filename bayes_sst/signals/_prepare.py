@@ -334,7 +334,7 @@ def reversal_band_share(peak_speed: float, options: "SignalOptions") -> float:
     return min(max(options.reversal_band, options.reversal_speed / peak_speed), max(options.reversal_band, 0.5))
 
 
-def kept_indices(start: int, stop: int, step: int, stagger: bool = True) -> np.ndarray:
+def kept_indices(start: int, stop: int, step: int, stagger: bool = False) -> np.ndarray:
     """The record indices of the kept samples in [start, stop): every step-th sample, or, with
     stagger, j*step + floor(j*step/N) for j = 0, 1, ... (N = the unstaggered count), a grid
     that slips by one step over the window.
