@@ -157,6 +157,21 @@ def test_unknown_columns_kept_when_numeric_dropped_when_text(folder):
     assert record.get("label") is None
 
 
+def test_an_unnamed_column_is_ignored_like_any_unknown_one(folder):
+    # pandas' DataFrame.to_csv writes its row index as a first column with an empty name
+    original = load_series(folder).tests[1]
+
+    def add_index_column(lines):
+        lines[0] = "," + lines[0]
+        lines[1:] = [f"{k},{line}" for k, line in enumerate(lines[1:])]
+
+    edit_csv(folder, "T02.csv", add_index_column)
+    record = load_series(folder).tests[1]
+    assert record.columns["unnamed column 1"][-1] == original.n_samples - 1
+    for name in ("t", "u", "F"):
+        np.testing.assert_array_equal(record.columns[name], original.columns[name])
+
+
 def test_blank_lines_are_skipped_and_rows_keep_file_numbers(folder):
     def blank_then_bad(lines):
         lines.insert(5, "")
@@ -446,11 +461,12 @@ def test_time_repeated(folder):
 def test_time_not_uniform_gives_values(folder):
     def jitter(lines):
         cells = lines[50].split(",")
-        cells[0] = "0.4905"  # sample 49 is at 0.49 s; the step from 0.48 becomes 0.0105 s
+        cells[0] = "0.493"  # sample 49 is at 0.49 s; the step from 0.48 becomes 0.013 s
         lines[50] = ",".join(cells)
 
     edit_csv(folder, "T02.csv", jitter)
-    assert_error(folder, "T02.csv", "row 51, column 't'", "time step 0.0105", "median step 0.01", "uniform")
+    assert_error(folder, "T02.csv", "row 51, column 't'", "time step 0.013", "median step 0.01",
+                 "more than 20%", "uniform")
 
 
 def test_time_far_from_zero_is_printed_with_the_digits_that_tell_the_samples_apart(folder):
@@ -461,11 +477,46 @@ def test_time_far_from_zero_is_printed_with_the_digits_that_tell_the_samples_apa
                 cells[0] = repr(1e9 + float(cells[0]))
                 lines[k] = ",".join(cells)
         cells = lines[50].split(",")
-        cells[0] = repr(1e9 + 0.4905)
+        cells[0] = repr(1e9 + 0.493)
         lines[50] = ",".join(cells)
 
     edit_csv(folder, "T02.csv", shift)
     assert_error(folder, "T02.csv", "row 51, column 't'", "from t = 1000000000.48 to 1000000000.49", "uniform")
+
+
+@pytest.mark.parametrize("decimals", [6, 4])
+def test_time_printed_with_few_decimals_at_a_binary_rate_loads_with_its_exact_rate(tmp_path, decimals):
+    # At 1024 Hz a step is 0.0009765625 s: printed with 6 decimals, single steps differ by
+    # 0.1 % (the rule before, every step within 0.1 % of the median, refused such a file);
+    # with 4 decimals by 10 %. Each stamp is still within 0.05 step of the uniform grid.
+    fs = 1024.0
+    series = make_series(1)
+    columns = dict(_columns(n=4096, fs=fs, extra=False))
+    columns["t"] = np.round(columns["t"], decimals)
+    steps = np.diff(columns["t"])
+    assert np.ptp(steps) > 1e-3 * np.median(steps)
+    record = Record(spec=series.tests[0].spec, columns=columns)
+    folder = write_series(Series(name="rounded", tests=(record,)), tmp_path / "rounded")
+    loaded = load_series(folder)
+    assert loaded.tests[0].sample_rate_hz == fs
+    np.testing.assert_allclose(loaded.tests[0].t, columns["t"], rtol=0, atol=0.51 * 10.0 ** -decimals)
+
+
+def test_a_clock_that_changes_rate_within_the_record_is_refused(folder):
+    # From row 202 on the steps are 1 % longer: no single step is far off the median, but
+    # by the end the stamps run 2 steps past the grid the first half follows.
+    def stretch(lines):
+        for k in range(202, len(lines)):
+            cells = lines[k].split(",")
+            if cells[0].strip():
+                t = float(cells[0])
+                cells[0] = repr(2.0 + 1.01 * (t - 2.0))
+                lines[k] = ",".join(cells)
+
+    edit_csv(folder, "T02.csv", stretch)
+    message = assert_error(folder, "T02.csv", "column 't'", "steps off the uniform grid", "rate changes",
+                           "uniform")
+    assert "differs from the median step" not in message
 
 
 def test_gap_in_time(folder):

@@ -17,11 +17,17 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import SeriesFormatError
-from ._series import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
+from ._series import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, uniform_grid
 
 KNOWN_COLUMNS = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
-# Relative difference from the median step above which the sampling counts as non-uniform.
-UNIFORM_RTOL = 1e-3
+# How far, in steps, a time stamp may lie off the straight line the time column follows.
+# Printing rounds stamps (6 decimals at 1024 Hz: 0.0005 of a step; 4 decimals: 0.05) while the
+# samples themselves stay uniform, and only the line's step is used downstream. Were the
+# sampling itself that irregular, a tenth of a step would still be small: it moves a signal's
+# top analysis frequency (4f) by 2 pi * 4f * 0.1 / fs in phase, 0.06 rad at 40 samples per
+# cycle, at random from sample to sample. A dropped or doubled sample, or a clock that changes
+# rate part-way, is half a step off or more.
+TIME_GRID_TOLERANCE = 0.1
 
 # What a careful reader accepts as a number: a plain decimal or scientific literal, nan or
 # inf. Stricter than float(), which also takes "1_000".
@@ -88,9 +94,10 @@ def _header(path: Path, line: str) -> list[str]:
             path, "row 1", f"holds numbers ({', '.join(names[:3])}{', ...' if len(names) > 3 else ''}), "
                            "not a header naming the columns"
         )
+    # A column without a name is one the format does not define, so it is ignored like any
+    # other: pandas' to_csv writes its row index so unless told index=False.
+    names = [name or f"unnamed column {k + 1}" for k, name in enumerate(names)]
     for k, name in enumerate(names):
-        if not name:
-            raise SeriesFormatError(path, f"row 1, column {k + 1}", "the header leaves this column unnamed")
         if name in names[:k]:
             raise SeriesFormatError(path, f"column {name!r}", "is named twice in the header")
     found = ", ".join(repr(n) for n in names)
@@ -196,13 +203,20 @@ def read_csv(path: Path) -> CsvTable:
 
 
 def check_time(table: CsvTable) -> float:
-    """Check that time strictly increases at a uniform rate; return the median step in s.
+    """Check that time strictly increases at a uniform rate; return the step in s.
+
+    Uniform means: every time stamp lies within TIME_GRID_TOLERANCE of a step of the
+    column's least-squares line t_0 + offset + step*i (`uniform_grid`). Single steps may differ
+    by more, as they do when the stamps were rounded in printing; the returned step is the
+    line's, which that rounding does not bias.
 
     Raises
     ------
     SeriesFormatError
-        A step is zero or negative, or differs from the median step by more than
-        `UNIFORM_RTOL` relative.
+        A step is zero or negative, or a time stamp lies off the line by more than the
+        tolerance. The message names the first step that is off by more than twice the
+        tolerance (a dropped sample, a glitch), or else the stamp farthest off (a clock that
+        runs at another rate in part of the record).
     """
     t = table.columns["t"]
     steps = np.diff(t)
@@ -215,15 +229,26 @@ def check_time(table: CsvTable) -> float:
             f"time {later} does not come after {earlier} on row "
             f"{table.row_of(i - 1)}; time must strictly increase",
         )
-    step = float(np.median(steps))
-    uneven = np.flatnonzero(np.abs(steps - step) > UNIFORM_RTOL * step)
+    offset, step = uniform_grid(t)
+    off_grid = (t - t[0]) - (offset + step * np.arange(t.shape[0]))
+    if np.max(np.abs(off_grid)) <= TIME_GRID_TOLERANCE * step:
+        return step
+    median = float(np.median(steps))
+    uneven = np.flatnonzero(np.abs(steps - median) > 2 * TIME_GRID_TOLERANCE * median)
     if uneven.size:
         i = int(uneven[0]) + 1
         start, end = format_pair(t[i - 1], t[i])
         raise SeriesFormatError(
             table.path, f"row {table.row_of(i)}, column 't'",
             f"time step {format_number(steps[i - 1])} s (from t = {start} to {end}) "
-            f"differs from the median step {format_number(step)} s by more than {UNIFORM_RTOL:.1%}; "
-            "sampling must be uniform",
+            f"differs from the median step {format_number(median)} s by more than "
+            f"{2 * TIME_GRID_TOLERANCE:.0%}; sampling must be uniform",
         )
-    return step
+    i = int(np.argmax(np.abs(off_grid)))
+    raise SeriesFormatError(
+        table.path, f"row {table.row_of(i)}, column 't'",
+        f"time {format_number(t[i])} lies {abs(off_grid[i]) / step:.2f} steps off the uniform grid "
+        f"that the column follows (step {format_number(step)} s, least squares over the record; "
+        f"{TIME_GRID_TOLERANCE:.0%} of a step is allowed): the clock's rate changes within the "
+        "record; sampling must be uniform",
+    )

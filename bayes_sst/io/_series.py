@@ -17,14 +17,33 @@ OPTIONAL_COLUMNS = ("a", "v", "u_cmd", "a_cmd")
 WHOLE_HZ_RTOL = 1e-6
 
 
-def sample_rate_of(t) -> float:
-    """The sampling rate of a uniform time column, fs = (n - 1)/(t[n-1] - t[0]), snapped to a
-    whole number of Hz within WHOLE_HZ_RTOL. Why not 1/(t[1] - t[0]): a clock far from zero
-    rounds each time stamp in its last digits (t from 12.5 s at 200 Hz gave 199.99999999997 Hz,
-    and the decimation, a whole number of samples, came out 49 instead of 50); over the record
-    the rounding divides by n - 1."""
+def uniform_grid(t) -> tuple[float, float]:
+    """The straight line that a time column follows, t_i ~ t_0 + offset + step*i (least squares
+    over the sample number i). Returns (offset, step).
+
+    Why least squares rather than the end points or single steps: time stamps are rounded when
+    they are printed (t with 6 decimals at 1024 Hz rounds each stamp by up to 5e-7 s, half a
+    part in a thousand of a step), and over the whole column that rounding averages out."""
     t = np.asarray(t, dtype=float)
-    rate = (len(t) - 1) / float(t[-1] - t[0])
+    n = t.shape[0]
+    if n < 2:
+        raise ValueError("a time column needs at least two samples to have a step")
+    since_start = t - t[0]
+    centred = np.arange(n) - 0.5 * (n - 1)
+    step = float(np.dot(centred, since_start) / np.dot(centred, centred))
+    offset = float(np.mean(since_start) - step * 0.5 * (n - 1))
+    return offset, step
+
+
+def sample_rate_of(t) -> float:
+    """The sampling rate of a uniform time column, fs = 1/step with the step of the column's
+    least-squares line (`uniform_grid`), snapped to a whole number of Hz within WHOLE_HZ_RTOL.
+    Why not 1/(t[1] - t[0]): a clock far from zero rounds each time stamp in its last digits
+    (t from 12.5 s at 200 Hz gave 199.99999999997 Hz, and the decimation, a whole number of
+    samples, came out 49 instead of 50), and so does a time column printed with few decimals;
+    over the record the rounding averages out."""
+    _, step = uniform_grid(t)
+    rate = 1.0 / step
     whole = round(rate)
     return float(whole) if whole > 0 and abs(rate - whole) <= WHOLE_HZ_RTOL * rate else rate
 
