@@ -107,6 +107,35 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
     assert selectable("drift", 5.06, rms_ratio=1.0033)
 
 
+def test_a_weak_hinge_is_selected_by_its_coefficient_z_above_its_own_threshold():
+    """The sixth simulator's hinge friction at 2.6 % of its range (seed 116): 59.7 +- 51.5 nats
+    on the stroke view, 50.9 of them in one test, so no score rule takes it; its coefficient
+    stands 20.1 sds from zero and it lowers the stroke view's RMS. The hinge's own threshold
+    (12) lies above the largest z of a hinge on 142 clean series (9.5) and beside a delay
+    (7.6); at the cubic's 4 those would have been claimed."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._diagnose import COEFFICIENT_Z, _entry, _selection_rule
+    from bayes_sst.effects import FORCE_EFFECTS
+
+    hinge = next(e for e in FORCE_EFFECTS if e.name == "position_friction")
+    diff = np.array([0.459, -1.994, -3.659, 4.603, -0.069, 7.908, -0.024, 1.716, 2.865, -3.827,
+                     0.602, 50.854, 0.596, -0.308])  # as measured on seed 116
+
+    def rule(amplitude_z, rms_ratio=0.998, best=True):
+        s = SimpleNamespace(effect=hinge, score=float(diff.sum()), score_se=51.5, params={},
+                            fit=SimpleNamespace(alpha=0.86), at_bound=False, grid_edge={}, diff=diff,
+                            amplitude_z=amplitude_z)
+        return _selection_rule(s, dict(_entry(s), rms_ratio=rms_ratio), best=best)
+
+    assert hinge.coefficient_z == pytest.approx(12.0) and hinge.coefficient_z > 9.53 > COEFFICIENT_Z
+    assert rule(20.1) == "coefficient_z"
+    assert rule(9.53) is None and rule(7.6) is None
+    assert rule(20.1, best=False) is None
+    # the sixth's seed 122 (4.4 % of the range, z 17.5) raised the view's RMS 0.9 %: not selected
+    assert rule(17.5, rms_ratio=1.009) is None
+
+
 def test_the_gas_struts_cubic_sign_comes_from_the_table_description():
     from bayes_sst.diagnosis._data import strut_cubic_sign
     from bayes_sst.io import Series

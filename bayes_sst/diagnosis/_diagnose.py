@@ -25,9 +25,10 @@
    STRONG_AMPLITUDE_Z); and in every case its linear coefficient must stand MIN_AMPLITUDE_Z sds
    away from zero (DERIVED_AMPLITUDE_Z for an effect that reads the acceleration when some
    tests have no accelerometer) and leave the residual RMS at most MAX_RMS_RISE times what it was. A one-column effect whose score is weak by construction (drift, the cubic
-   stiffness: Effect.z_selectable) is also selected when its coefficient stands COEFFICIENT_Z
-   sds from zero, its score is positive and it is the round's best (and, acting within each test,
-   lowers its view's residual RMS). Greedy: after a selection
+   stiffness, the hinge friction: Effect.z_selectable) is also selected when its coefficient
+   stands COEFFICIENT_Z sds from zero (the hinge: its own Effect.coefficient_z, 12), its score is
+   positive and it is the round's best (and, acting within each test, lowers its view's
+   residual RMS). Greedy: after a selection
    the rest are re-scored on top of it.
 5. How far: residual RMS before and after (overall and in the top region), the share of the
    excess mean square removed, shrink = 1 - (rms_after^2 - f^2)/(rms_before^2 - f^2) with
@@ -157,8 +158,9 @@ ONE_TEST_Z = 2.5
 # drift's z on series without drift at most 2.1, 5 % drift 4.4-4.5 (6.5 and 4.9 nats); the
 # cubic's z without a cubic at most 2.9 (specimens, delays, alpha 0.25 included; 3.1 without
 # an accelerometer), with one 4.5-15.6 (K'e 1e6 N/m on the independent generator, 3x and 5x
-# the gas strut's on the twin; six of these twelve scored under MIN_SCORE). Not adopted for the hinge (z 4.8-7.6 without a
-# hinge, beside a delay), strut damping (24 on clean series) or strut inertia.
+# the gas strut's on the twin; six of these twelve scored under MIN_SCORE). Not adopted for strut
+# damping (24 on clean series) or strut inertia; the hinge, whose z reached 4.8-7.6 without a
+# hinge beside a delay and 9.5 on clean series, asks 12 (PositionFriction.coefficient_z, 2026-11-30).
 COEFFICIENT_Z = 4.0
 # ... and an effect that acts within each test (not Effect.between_tests: the cubic) must lower
 # its view's residual RMS to be selected this way. Why: on the sixth simulator's series with a
@@ -639,7 +641,8 @@ def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False,
             return "loss_scaled_z"
         if entry.get("explains_most", False) and s.amplitude_z >= STRONG_AMPLITUDE_Z:
             return "explains_most"
-    if (s.effect.z_selectable and best and s.score > 0 and s.amplitude_z >= COEFFICIENT_Z
+    coefficient_z = COEFFICIENT_Z if s.effect.coefficient_z is None else s.effect.coefficient_z
+    if (s.effect.z_selectable and best and s.score > 0 and s.amplitude_z >= coefficient_z
             and (s.effect.between_tests or entry.get("rms_ratio", 0.0) < 1.0)):
         return "coefficient_z"
     return None
