@@ -1147,7 +1147,10 @@ def diagnose(
         breakaway=breakaway,
         timings=timings,
         settings={"z_select": Z_SELECT, "min_score": MIN_SCORE, "sign_p": SIGN_P, "improved_nats": IMPROVED_NATS, "z_loss": Z_LOSS, "one_test_z": ONE_TEST_Z,
-                  "coefficient_z": COEFFICIENT_Z, "min_amplitude_z": MIN_AMPLITUDE_Z, "max_rms_rise": MAX_RMS_RISE,
+                  "coefficient_z": COEFFICIENT_Z,
+                  "coefficient_z_by_effect": {e.name: e.coefficient_z for e in effects
+                                              if e.z_selectable and e.coefficient_z is not None},
+                  "min_amplitude_z": MIN_AMPLITUDE_Z, "max_rms_rise": MAX_RMS_RISE,
                   "derived_amplitude_z": DERIVED_AMPLITUDE_Z,
                   "cutoff_multiple": signals.cutoff_multiple, "reversal_band": signals.reversal_band,
                   "tests": [t.id for t in tests]},
