@@ -111,7 +111,7 @@ def test_a_weak_hinge_is_selected_by_its_coefficient_z_above_its_own_threshold()
     """The sixth simulator's hinge friction at 2.6 % of its range (seed 116): 59.7 +- 51.5 nats
     on the stroke view, 50.9 of them in one test, so no score rule takes it; its coefficient
     stands 20.1 sds from zero and it lowers the stroke view's RMS. The hinge's own threshold
-    (12) lies above the largest z of a hinge on 142 clean series (9.5) and beside a delay
+    (12) lies above the largest z of a hinge on 110 clean series (9.5) and beside a delay
     (7.6); at the cubic's 4 those would have been claimed."""
     from types import SimpleNamespace
 

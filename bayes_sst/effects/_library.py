@@ -234,9 +234,10 @@ class PositionFriction(Effect):
     # One fixed column like the cubic, and weak in the leave-one-test-out score for the same
     # reason: within a sine test (u/h)^2*sign(v) is mostly each test's own Fmu*sign(v), which
     # the per-test coefficients take. Its z without a hinge is larger than the cubic's (up to
-    # 9.5 on 142 clean series of three simulators, 4.8-7.6 beside a delay), so it asks 12;
+    # 9.5 on 110 clean series of three simulators, 4.8-7.6 beside a delay), so it asks 12;
     # two weak hinges (2.6 and 4.4 % of the sixth simulator's range) stood at 20 and 17.5 and
-    # were missed by every other rule (docs/diagnosis.md, known gaps).
+    # were missed by every other rule; the first is found so, the second raises its view's RMS
+    # (docs/diagnosis.md, the coefficient rule).
     z_selectable: bool = True
     coefficient_z: float | None = 12.0
 
