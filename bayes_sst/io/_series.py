@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -29,9 +30,11 @@ def uniform_grid(t) -> tuple[float, float]:
     if n < 2:
         raise ValueError("a time column needs at least two samples to have a step")
     since_start = t - t[0]
-    centred = np.arange(n) - 0.5 * (n - 1)
-    step = float(np.dot(centred, since_start) / np.dot(centred, centred))
-    offset = float(np.mean(since_start) - step * 0.5 * (n - 1))
+    # sum_i (i - m)^2 = n(n^2 - 1)/12 with m = (n - 1)/2, so only one index vector is built
+    mean_index = 0.5 * (n - 1)
+    total = float(since_start.sum())
+    step = (float(np.dot(np.arange(n, dtype=float), since_start)) - mean_index * total) / (n * (n * n - 1) / 12.0)
+    offset = total / n - step * mean_index
     return offset, step
 
 
@@ -97,8 +100,9 @@ class TestRecord:
         """A column by name, or None when the test did not record it."""
         return self.columns.get(name)
 
-    @property
+    @cached_property
     def sample_rate_hz(self) -> float:
+        # cached: read over the whole column, and asked for several times per test
         return sample_rate_of(self.t)
 
     @property
