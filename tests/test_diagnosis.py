@@ -604,6 +604,43 @@ def test_the_sandwich_sd_matches_the_posterior_sd_and_widens_where_the_tests_dis
         assert sandwich > 5 * posterior
 
 
+def test_the_plug_in_noise_read_from_the_scored_models_residual_keeps_a_spiky_column_from_halving_it():
+    """Twelve synthetic tests, white noise of sd 0.3, and a column that is non-zero on 2 % of the
+    samples (a narrow peak at each reversal) on which every test has a misfit of its own,
+    +3 in half the tests and -3 in the other half: no common part. With each test's least-squares plug-in the column takes the
+    misfit in every test, its sigma reads well under the residual that the model with one
+    shared coefficient leaves, and the log marginal falls far under the base model's. With the
+    plug-in read from the scored model's residual (_fit's noise_residuals, the reversal view's
+    consistent noise) sigma is that residual's sd, computed here independently, and the column
+    costs at most its Occam factor (a few nats)."""
+    from bayes_sst.diagnosis._engine import _fit
+
+    rng = np.random.default_rng(11)
+    J, n, noise = 12, 500, 0.3
+    ys, Xs_base, Xs_spiky = [], [], []
+    for j in range(J):
+        X = rng.standard_normal((4, n))
+        spiky = np.zeros(n)
+        where = rng.choice(n, size=n // 50, replace=False)
+        spiky[where] = 1.0
+        misfit = (3.0 if j % 2 else -3.0) * spiky
+        ys.append(np.array([2.0, -1.0, 0.5, 1.5]) @ X + misfit + noise * rng.standard_normal(n))
+        Xs_base.append(X)
+        Xs_spiky.append(np.vstack([X, spiky]))
+    names = ("Me", "Ke", "Ce", "Fmu")
+    args = (0.5, 0.0, ())
+    base = _fit(ys, Xs_base, names, np.zeros(0), *args)
+    least_squares = _fit(ys, Xs_spiky, names + ("effect.c",), np.array([10.0]), *args)
+    consistent = _fit(ys, Xs_spiky, names + ("effect.c",), np.array([10.0]), *args,
+                      noise_residuals=least_squares.residuals)
+    model_residual_sd = np.array([np.std(r, ddof=5) for r in least_squares.residuals])
+    assert np.all(model_residual_sd > 0.4)  # the misfit is left in the residual by one shared value
+    assert np.all(least_squares.sigma < 0.36)  # the free per-test fit took it out of its plug-in
+    assert consistent.sigma == pytest.approx(model_residual_sd, rel=0.03)
+    assert least_squares.log_marginal - base.log_marginal < -500.0
+    assert -8.0 < consistent.log_marginal - base.log_marginal < 2.0
+
+
 @pytest.mark.parametrize("sample_rate_hz", [200.0, 1000.0])
 def test_derived_acceleration_noise_draws_match_the_error_that_u_noise_makes(sample_rate_hz):
     """A 2 Hz sine of 20 mm with 20 um of white noise on u: the draws that the diagnosis carries

@@ -39,7 +39,8 @@ speed left out) against that view's own base model: in a view with the reversal 
 table's rest at each reversal, where |u| is largest, projects onto their columns. Stiction
 (REVERSAL_EFFECTS), which lives inside the reversal band, is scored on the reversal view
 (REVERSAL_SIGNALS: cut-off 12f, the reversal weight 0 below 2 % of the peak speed, where v
-crosses zero, rising to 1 at 7 %) against that view's own base model. The side
+crosses zero, rising to 1 at 7 %) against that view's own base model, its plug-in noise read
+from each scored model's own residual (Scorer.consistent_noise). The side
 views are screened first; the effects they select enter the default view's model before its
 own effects are screened, and when the default view selects effects each side view is screened
 again with them in its model: a side effect it no longer selects is dropped, one that a
@@ -786,6 +787,7 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
     if scorer is None:
         tests = effect_data(series, options)
         scorer = Scorer(tests, _scale(series, tests))
+        scorer.consistent_noise = view == "reversal"
     tests = scorer.tests
     say(f"{view} view: screening {', '.join(e.name for e in effects)}"
         + (f" with {', '.join(e.name for e, _ in given)} in the model" if given else "") + " ...")
