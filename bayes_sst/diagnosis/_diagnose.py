@@ -786,8 +786,7 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
     scale it carries)."""
     if scorer is None:
         tests = effect_data(series, options)
-        scorer = Scorer(tests, _scale(series, tests))
-        scorer.consistent_noise = view == "reversal"
+        scorer = Scorer(tests, _scale(series, tests), consistent_noise=view == "reversal")
     tests = scorer.tests
     say(f"{view} view: screening {', '.join(e.name for e in effects)}"
         + (f" with {', '.join(e.name for e, _ in given)} in the model" if given else "") + " ...")

@@ -102,7 +102,8 @@ class ModelFit:
 class Scorer:
     """Scores models on a fixed list of tests, caching base and effect columns."""
 
-    def __init__(self, tests: Sequence[EffectData], base_scale: Mapping[str, float] | None = None):
+    def __init__(self, tests: Sequence[EffectData], base_scale: Mapping[str, float] | None = None,
+                 consistent_noise: bool = False):
         self.tests = list(tests)
         self._base_cache: dict[float, list[np.ndarray]] = {}
         self._effect_cache: dict = {}
@@ -112,7 +113,7 @@ class Scorer:
         self.a_noise = [None if t.a_noise_full is None else t.filtered(t.a_noise_full) for t in self.tests]
         self._noise_cache: dict = {}
         # the plug-in noise from the scored model's own residual (module docstring)
-        self.consistent_noise = False
+        self.consistent_noise = consistent_noise
 
     # --- design -----------------------------------------------------------------------------
     def base_columns(self, alpha: float) -> list[np.ndarray]:
