@@ -18,7 +18,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from bayes_sst.diagnosis._engine import ModelFit, Scorer, Term
-from bayes_sst.effects import Effect
+from bayes_sst.effects import AmplitudeFree, Effect
 
 ALPHA_COARSE = tuple(np.round(np.arange(0.2, 1.2001, 0.05), 4))
 
@@ -45,6 +45,9 @@ class EffectScore:
     # largest |coefficient|/sd of the effect's linear terms; without any, the read setting's
     # distance from the effect's null_setting in its own sds (the delay from 0)
     amplitude_z: float = float("inf")
+    # for an effect with an amplitude law (Effect.amplitude_power): its log marginal minus that of
+    # the same shape with no amplitude law (AmplitudeFree), both at its alpha; None where not checked
+    amplitude_law_nats: float | None = None
 
     @property
     def z(self) -> float:
@@ -279,6 +282,10 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit, *, wide_sear
     # a coefficient of the wrong sign, or a setting past which the effect is no longer itself
     # (a specimen damped to the top of its range), is the base model
     at_bound = not _physical(effect, coef, effect.coefficient_signs(base)) or effect.at_setting_bound(best_setting)
+    amplitude_law_nats = None
+    if effect.amplitude_power is not None and not at_bound:
+        rival = scorer.fit(terms + [(AmplitudeFree.of(effect, scorer.tests), best_setting)], fit.alpha)
+        amplitude_law_nats = float(fit.log_marginal - rival.log_marginal)
     if at_bound:
         # the physical fit sits at the bound (coefficient 0): the base model itself
         score, se, diff, fit = 0.0, 0.0, np.zeros_like(diff), current
@@ -293,4 +300,5 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit, *, wide_sear
     else:
         amplitude_z = float("inf")
     return EffectScore(effect, best_setting, score, se, params, fit, diff,
-                       [(dict(s), float(lm)) for s, lm in profile], at_bound, grid_edge, amplitude_z)
+                       [(dict(s), float(lm)) for s, lm in profile], at_bound, grid_edge, amplitude_z,
+                       amplitude_law_nats)

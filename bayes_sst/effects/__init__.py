@@ -15,6 +15,7 @@ a command-to-motion resonance seen in broadband tests. See docs/diagnosis.md.
 from bayes_sst.effects._data import EffectData
 from bayes_sst.effects._library import (
     EFFECTS,
+    AmplitudeFree,
     FORCE_EFFECTS,
     ChannelDelay,
     Drift,
@@ -29,10 +30,11 @@ from bayes_sst.effects._library import (
     StrutInertia,
     effect_by_name,
     sdof_base_shear,
+    steady_amplitude,
 )
 
 __all__ = [
-    "EFFECTS", "FORCE_EFFECTS", "ChannelDelay", "Drift", "Effect", "EffectData", "NonlinearStiffness",
+    "EFFECTS", "FORCE_EFFECTS", "AmplitudeFree", "ChannelDelay", "Drift", "Effect", "EffectData", "NonlinearStiffness",
     "OilColumn", "Parameter", "PositionFriction", "Specimen", "Stiction", "StrutDamping", "StrutInertia",
-    "effect_by_name", "sdof_base_shear",
+    "effect_by_name", "sdof_base_shear", "steady_amplitude",
 ]
