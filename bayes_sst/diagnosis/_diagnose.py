@@ -177,7 +177,7 @@ COEFFICIENT_Z = 4.0
 # true 5 % raised that RMS 0.3 %), so it keeps the rule above alone
 # An effect with an amplitude law (Effect.amplitude_power: the cubic's force grows as A^3, the
 # hinge's as A^2) is not selected by any rule when the same within-test shape with no amplitude
-# law (bayes_sst.effects.AmplitudeFree) fits its view at least AMPLITUDE_LAW_NATS better in log
+# law (bayes_sst.effects.AmplitudeFree) fits its view more than AMPLITUDE_LAW_NATS better in log
 # marginal. Why: the sixth simulator's clean friction (a Stribeck bump of up to 3 %, sticking at
 # each reversal) leaves a third harmonic in phase with u of about the same force, 130-490 N, in
 # tests of 5-50 mm, and a shared cubic took it: seed 40, K'e = 5.3 MN/m at z 4.46 (its per-test

@@ -65,8 +65,8 @@ class Effect:
     null_setting: Mapping[str, float] = field(default_factory=dict)
     # the power p of the test amplitude A that the effect's force grows with at a fixed
     # within-test shape (the cubic A^3, the hinge A^2); the diagnosis checks that the data follow
-    # that law better than the same shape with no amplitude law (bayes_sst.diagnosis
-    # AmplitudeFree). None: no such law to check
+    # that law better than the same shape with no amplitude law (AmplitudeFree, below). None: no
+    # such law to check
     amplitude_power: float | None = None
 
     def settings(self) -> list[dict[str, float]]:
@@ -525,6 +525,10 @@ class AmplitudeFree(Effect):
 
     @classmethod
     def of(cls, effect: Effect, tests) -> "AmplitudeFree":
+        # the accelerometer-noise correction would need the scaled noise columns too
+        if effect.amplitude_power is None or effect.reads_acceleration:
+            raise ValueError(f"{effect.name}: AmplitudeFree needs an amplitude law and columns that do not "
+                             "read the acceleration")
         return cls(name=f"{effect.name}.amplitude_free", physics=f"{effect.physics}, with no amplitude law",
                    equation=f"({effect.equation})*(A_ref/A)^{effect.amplitude_power:g}",
                    coefficients=effect.coefficients, positive=effect.positive, inner=effect,
