@@ -138,7 +138,9 @@ def test_a_weak_hinge_is_selected_by_its_coefficient_z_above_its_own_threshold()
     # the amplitude-free rival fitting better vetoes it (beside a 2 ms delay: 2.8 nats better)
     assert rule(20.1, law=-2.8) is None and rule(20.1, law=50.7) == "coefficient_z"
     # the sixth's seed 122 (4.4 % of the range, z 17.5) raised the view's RMS 0.9 %: not selected
-    assert rule(17.5, rms_ratio=1.009) is None
+    # unless it follows its amplitude law (by 59.2 nats there) by AMPLITUDE_LAW_FOLLOWED_NATS
+    assert rule(17.5, rms_ratio=1.009) is None and rule(17.5, rms_ratio=1.009, law=5.0) is None
+    assert rule(17.5, rms_ratio=1.009, law=59.2) == "coefficient_z"
 
 
 def test_a_third_harmonic_that_does_not_grow_as_the_cube_of_the_amplitude_is_not_a_strut_cubic(tmp_path):
