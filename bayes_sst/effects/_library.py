@@ -531,7 +531,7 @@ class AmplitudeFree(Effect):
                              "read the acceleration")
         return cls(name=f"{effect.name}.amplitude_free", physics=f"{effect.physics}, with no amplitude law",
                    equation=f"({effect.equation})*(A_ref/A)^{effect.amplitude_power:g}",
-                   coefficients=effect.coefficients, positive=effect.positive, inner=effect,
+                   coefficients=effect.coefficients, inner=effect,
                    reference_m=max(steady_amplitude(t) for t in tests))
 
     def columns(self, test, setting, alpha, base=None):
