@@ -97,6 +97,7 @@ def _cmd_fit(args) -> int:
         prior=priors,
         signals=options,
         progress=_progress,
+        widen=not args.no_widening,
     )
     _progress("checking convergence and writing the run ...")
     summary = summarize(result.tree, seconds=time.perf_counter() - started)
@@ -168,6 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="let the damping exponent vary between tests around the population's (its between-test "
                         "sd reported as alpha_between_test_sd): for a damping law that is a power law only "
                         "approximately, read by tests over different speed ranges")
+    p.add_argument("--no-widening", action="store_true",
+                   help="report the model's posterior as it is: do not widen the population intervals where the "
+                        "tests' own pulls on them scatter more than the model allows (see docs/design.md)")
     p.add_argument("--cutoff-multiple", type=positive_number, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
     p.add_argument("--reversal-band", type=share_below_one, default=None,

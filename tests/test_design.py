@@ -354,6 +354,38 @@ def test_unreachable_target_says_why(small_run):
     assert "test-to-test variation" in result.reason
 
 
+def test_a_widened_run_is_designed_on_the_models_draws_and_its_half_widths_stretched(small_run):
+    """A run whose Ke interval the fit stretched by 2 (bayes_sst.inference._widening): the design
+    reads the model's own draws and reports Ke's half-widths twice what it predicts for them,
+    the other parameters' as they are (the search aims at Fmu, whose factor is 1, so both
+    designs choose the same tests)."""
+    import json as _json
+
+    from bayes_sst.design import design
+    from bayes_sst.inference._widening import POPULATION, widening_of
+    from bayes_sst.io import read_run_tree
+
+    plain_tree = read_run_tree(small_run / "run")
+    assert all(w["factor"] == 1.0 for w in widening_of(plain_tree).values())  # 4 tests: too few to widen
+    widened_tree = read_run_tree(small_run / "run")
+    post = widened_tree["posterior"].to_dataset()
+    widened_tree["model_posterior"] = post[list(POPULATION)]
+    ke = post["Ke"]
+    widened_tree["posterior"] = post.assign(Ke=ke.mean() + 2.0 * (ke - ke.mean()))
+    widened_tree.attrs["widening"] = _json.dumps(
+        {name: {"factor": 2.0 if name == "Ke" else 1.0, "ratio": 2.0 if name == "Ke" else 0.9,
+                "shift_test": "S02", "shift_sd": 0.5} for name in POPULATION})
+    options = dict(targets={"Fmu": 0.05}, max_tests=2, n_outcomes=8, candidates=SMALL_CANDIDATES, seed=0)
+    plain, widened = design(plain_tree, **options), design(widened_tree, **options)
+    assert widened.recommended == plain.recommended
+    for name in POPULATION:
+        factor = 2.0 if name == "Ke" else 1.0
+        assert widened.current[name] == pytest.approx(factor * plain.current[name], rel=1e-12), name
+        for before, after in zip(plain.curve, widened.curve):
+            assert after[name]["q50"] == pytest.approx(factor * before[name]["q50"], rel=1e-12), name
+    assert widened.floor["Ke"]["half_width_floor"] == pytest.approx(2.0 * plain.floor["Ke"]["half_width_floor"])
+
+
 # ---------------------------------------------------------------- a series with payloads
 
 @pytest.fixture(scope="module")

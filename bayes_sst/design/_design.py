@@ -38,6 +38,7 @@ from bayes_sst.design._engine import (
     ignored_outer,
     noise_sources,
     preposterior_curve,
+    widening_factors,
     regressor_columns,
 )
 from bayes_sst.design._search import cycled, greedy_design
@@ -212,6 +213,9 @@ def design(
     prepared = run_prepared(tree, series)
     options = run_signal_options(tree)
     full = design_posterior(tree, prepared)
+    widening = widening_factors(tree)
+    # the search reads the model's predicted intervals, which the widening then stretches
+    model_targets = {name: target / widening[PARAMETERS.index(name)] for name, target in targets.items()}
     pick = np.unique(np.linspace(0, full.n_draws - 1, min(n_draws, full.n_draws)).round().astype(int))
     post = full.subset(pick)
     means = {name: float(np.mean(post.mu[:, k]) * post.scale[k]) for k, name in enumerate(COEFFICIENTS)}
@@ -268,7 +272,7 @@ def design(
     base_ignored = (None if post.ignored_spread is None
                     else sum(ignored_outer(fpost, info[fisher_pick]) for info in old_info))
     cand_info = np.stack([fisher_information(fpost, built[c], twins[c]) for c in accepted])
-    chosen, fisher_path = greedy_design(fpost, base, cand_info, targets, max_tests, base_ignored=base_ignored)
+    chosen, fisher_path = greedy_design(fpost, base, cand_info, model_targets, max_tests, base_ignored=base_ignored)
     recommended = [accepted[i] for i in chosen]
     say(f"greedy search done ({time.perf_counter() - started:.1f} s)")
 
@@ -281,11 +285,13 @@ def design(
                                            old_ignored=old_ignored)
     say(f"preposterior of the repeated plan done ({time.perf_counter() - started:.1f} s)")
 
-    curve = _curve_rows(half_rec, PARAMETERS)
-    curve_repeat = _curve_rows(half_rep, PARAMETERS)
+    curve = _curve_rows(half_rec * widening, PARAMETERS)
+    curve_repeat = _curve_rows(half_rep * widening, PARAMETERS)
     n_needed = _n_needed(curve, targets)
     n_needed_repeat = _n_needed(curve_repeat, targets)
     floor = spread_floor(post, len(prepared) + max_tests)
+    for name, entry in floor.items():
+        entry["half_width_floor"] *= widening[PARAMETERS.index(name)]
     reason = None if n_needed is not None else _reason(targets, curve, floor, len(prepared), max_tests)
     ess_median = np.median(ess_rec, axis=0)
     diagnostics = {
@@ -301,7 +307,7 @@ def design(
             "refit after the first tests and design again")
     return DesignResult(
         targets=dict(targets),
-        current=half_widths_from_draws(full),
+        current={name: value * widening[PARAMETERS.index(name)] for name, value in half_widths_from_draws(full).items()},
         recommended=recommended,
         repeat_plan=repeat,
         curve=curve,
@@ -313,7 +319,7 @@ def design(
         limits=limits,
         n_candidates=len(candidates),
         rejected=rejected,
-        fisher_path=[{name: float(row[k]) for k, name in enumerate(PARAMETERS)} | {"n_added": n}
+        fisher_path=[{name: float(row[k] * widening[k]) for k, name in enumerate(PARAMETERS)} | {"n_added": n}
                      for n, row in enumerate(fisher_path)],
         settings={"max_tests": max_tests, "n_outcomes": n_outcomes, "n_draws": post.n_draws,
                   "fisher_draws": fpost.n_draws, "seed": seed, "n_cycles_per_test": n_cycles,

@@ -45,6 +45,7 @@ from scipy.special import erfinv, ndtr
 from bayes_sst.inference import _smalllinalg as sl
 from bayes_sst.inference._collapsed import load_share, payload_friction_factor
 from bayes_sst.inference._priors import ALPHA_SPREAD_VARIABLE, GAIN_SITE
+from bayes_sst.inference._widening import model_draws, widening_of
 from bayes_sst.inference._statistics import (
     ALPHA_MAX,
     ALPHA_MIN,
@@ -98,8 +99,19 @@ class DesignPosterior:
 
 
 def _flat(tree, name):
-    values = np.asarray(tree["posterior"][name].values, dtype=float)
+    # the model's own draws: the design predicts the model's posterior and applies the run's
+    # widening to what it predicts (widening_factors)
+    values = np.asarray(model_draws(tree, name).values, dtype=float)
     return values.reshape((-1,) + values.shape[2:])
+
+
+def widening_factors(tree) -> np.ndarray:
+    """The run's widening of the population intervals (bayes_sst.inference._widening), in
+    PARAMETERS order; ones for a run fitted without it. The design predicts the model's own
+    intervals and stretches them by these, as the fit did: the tests' scatter beyond the model
+    is taken to stay in proportion as tests are added, since both shrink as 1/sqrt(J)."""
+    widening = widening_of(tree)
+    return np.array([float(widening.get(name, {}).get("factor", 1.0)) for name in PARAMETERS])
 
 
 def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:

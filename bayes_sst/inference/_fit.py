@@ -258,6 +258,7 @@ def fit(
     progress: Callable[[str], None] | None = None,
     auto_mass_refit: bool = True,
     release_compiled: bool = True,
+    widen: bool = True,
 ) -> FitResult:
     """Posterior of the table's force model from every periodic test of `series`.
 
@@ -283,6 +284,11 @@ def fit(
 
     extensions: when R-hat or the bulk ESS is short of its limit after `draws`, the chains go
     on for `draws` more, up to this many times (SamplerSettings.extensions; 0: never).
+
+    widen: leave each test out in turn (at the posterior mode) and stretch the population draws
+    where the estimates scatter more than the posterior allows (bayes_sst.inference._widening;
+    the model's own draws are kept in the tree's model_posterior group, the jackknife's
+    estimates in its jackknife group). False: the model's posterior as it is.
 
     release_compiled: after sampling, drop JAX's in-memory compiled programs
     (jax.clear_caches; see _release_compiled_programs). A later fit loads its sampler from the
@@ -434,6 +440,16 @@ def fit(
             total = replace(total, draws=total.draws + draws)
             tree = build_tree(seed + 1, samples, extra, scaled, moments, prepared, priors, total, series, signals)
             timings["posterior"] += time.perf_counter() - start
+        if widen:
+            from bayes_sst.inference._widening import jackknife_modes
+
+            start = time.perf_counter()
+            tree["jackknife"] = jackknife_modes(samples, extra["potential_energy"], start_now, scaled,
+                                                _site_scales(inverse_mass), moments.coefficient_scale,
+                                                moments.test_ids)
+            timings["jackknife"] = timings.get("jackknife", 0.0) + time.perf_counter() - start
+            _say(progress, f"tests left out one at a time in {timings['jackknife']:.1f} s (the intervals' check "
+                           "against the tests' own scatter)")
         if release_compiled:
             del mcmc, kernel
             _release_compiled_programs()
@@ -465,6 +481,10 @@ def fit(
             tree = sample(priors)
             refit.update(held_fit_mass_spread=held_spread, shared=True, ignored_spread=HELD_MASS_SPREAD[0])
         tree.attrs["mass_refit"] = json.dumps(refit)
+    if widen:
+        from bayes_sst.inference._widening import widen as widen_tree
+
+        tree = widen_tree(tree)
     if notes:
         tree.attrs["signal_notes"] = json.dumps(notes)
     broadband = [r.spec.id for r in series.tests if not r.spec.is_periodic]

@@ -139,7 +139,11 @@ class TestPredictive:
 
 
 def _flat(tree, name):
-    values = np.asarray(tree["posterior"][name].values)
+    # the model's own alpha, the one each draw's test coefficients were drawn with (a widened
+    # run keeps it in model_posterior; bayes_sst.inference._widening)
+    from bayes_sst.inference._widening import model_draws
+
+    values = np.asarray(model_draws(tree, name).values)
     return values.reshape((-1,) + values.shape[2:])
 
 

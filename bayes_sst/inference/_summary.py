@@ -295,6 +295,21 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     priors = _tree_priors(tree)
     if priors is not None:
         summary["priors"] = priors
+    from bayes_sst.inference._widening import MAX_WIDENING, widening_of
+
+    widening = widening_of(tree)
+    if widening:
+        summary["widening"] = widening
+        capped = [name for name, w in widening.items() if w["ratio"] >= MAX_WIDENING]
+        if capped:
+            shifts = ", ".join(f"{name} by {widening[name]['shift_sd']:+.1f} sd (test {widening[name]['shift_test']})"
+                               for name in capped)
+            notes.append(
+                f"leaving single tests out moves {', '.join(capped)} by more than {MAX_WIDENING:g} times "
+                f"{'its' if len(capped) == 1 else 'their'} posterior sd (furthest: {shifts}); the intervals are "
+                f"widened {MAX_WIDENING:g} times, no further: some tests disagree with the rest beyond what the "
+                "model allows; compare them in the report and run bayes-sst diagnose")
+            summary["warnings"] = warnings + notes
     return summary
 
 
@@ -395,6 +410,15 @@ def format_summary(summary: dict, classical=None, priors: dict | None = None) ->
         generic = [name for name in summary["parameters"] if name not in relations]
         if relations and generic:
             lines.append(f"  {', '.join(generic)}: no component relation, generic prior centre")
+    widening = summary.get("widening") or {}
+    widened = {name: w for name, w in widening.items() if w["factor"] > 1.005}
+    if widened:
+        lines.append(
+            "intervals widened where the tests, left out one at a time, scatter more than the model allows: "
+            + ", ".join(f"{name} x{w['factor']:.2f}" for name, w in widened.items()))
+    elif widening:
+        lines.append("intervals as the model gives them: the tests, left out one at a time, scatter no more "
+                     "than it allows")
     lines.append("")
     lines.append("between-test spread (sd relative to the population value, mean [90% interval]):")
     for name, s in summary["between_test_spread"].items():
