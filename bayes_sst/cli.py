@@ -171,7 +171,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "approximately, read by tests over different speed ranges")
     p.add_argument("--no-widening", action="store_true",
                    help="report the model's posterior as it is: do not widen the population intervals where the "
-                        "tests' own pulls on them scatter more than the model allows (see docs/design.md)")
+                        "tests, left out one at a time, scatter more than the model allows (README, Model)")
     p.add_argument("--cutoff-multiple", type=positive_number, default=4.0,
                    help="low-pass cut-off as a multiple of each test's frequency (default 4)")
     p.add_argument("--reversal-band", type=share_below_one, default=None,

@@ -26,6 +26,7 @@ import numpy as np
 
 from bayes_sst.design import design
 from bayes_sst.inference import fit
+from bayes_sst.inference._widening import model_draws
 from bayes_sst.io import Series, write_json_atomic
 from bayes_sst.twin import PlanItem, default_plan, simulate
 
@@ -69,7 +70,8 @@ def reality_check(rep: int, n_start: int, n_outcomes: int, say) -> dict:
     start = fit(series, seed=rep)
     result = design(start.tree, targets=TARGETS, max_tests=10, series=series, n_outcomes=n_outcomes, seed=rep)
     data = result.to_json()
-    spread = start.tree["posterior"]["between_test_sd"].sel(coefficient="Ke") / start.tree["posterior"]["Ke"]
+    spread = (start.tree["posterior"]["between_test_sd"].sel(coefficient="Ke")
+              / model_draws(start.tree, "Ke"))  # the model's own Ke, the same draws as the spread
     row = {"rep": rep, "seed": seed, "current": data["current"], "n_needed": data["n_needed"],
            "Ke_relative_spread_posterior": {"q10": float(spread.quantile(0.1)), "q50": float(spread.quantile(0.5)),
                                             "q90": float(spread.quantile(0.9)), "truth": SPREAD},

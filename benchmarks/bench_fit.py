@@ -113,10 +113,12 @@ def worker_ours(series_file: str, result_file: str, per_test_alpha: bool = False
             events[event] = events.get(event, 0.0) + float(duration)
 
     jax.monitoring.register_event_duration_secs_listener(listener)
+    import xarray as xr
     from arviz_stats import mcse
 
     from bayes_sst.inference import fit
     from bayes_sst.inference._summary import summarize
+    from bayes_sst.inference._widening import model_draws
 
     with open(series_file, "rb") as fh:
         series = pickle.load(fh)
@@ -131,7 +133,13 @@ def worker_ours(series_file: str, result_file: str, per_test_alpha: bool = False
         result = fit(series, prior=prior)
         wall = time.perf_counter() - start
         summary = summarize(result.tree)
-        m = mcse(result.tree, var_names=list(POPULATION))
+        # the model's own draws, as the peer samples the model: the widening stretches the
+        # reported ones (bayes_sst.inference._widening), which the peer does not do
+        model = xr.DataTree.from_dict({"posterior": xr.Dataset(
+            {n: model_draws(result.tree, n) for n in POPULATION})})
+        m = mcse(model, var_names=list(POPULATION))
+        model_values = {n: {"mean": float(model["posterior"][n].mean()),
+                            "sd": float(model["posterior"][n].std(ddof=1))} for n in POPULATION}
         out["runs"][label] = {
             "wall_s": wall,
             "timings": dict(result.timings),
@@ -141,7 +149,8 @@ def worker_ours(series_file: str, result_file: str, per_test_alpha: bool = False
             "max_r_hat_all": summary["max_r_hat"],
             "divergences": summary["divergences"],
             "mean_leapfrog_steps": float(result.tree["sample_stats"]["n_steps"].values.mean()),
-            "parameters": {n: {**summary["parameters"][n], "mcse_mean": float(m[n])} for n in POPULATION},
+            "parameters": {n: {**summary["parameters"][n], **model_values[n], "mcse_mean": float(m[n]),
+                               "reported_sd": summary["parameters"][n]["sd"]} for n in POPULATION},
             "between_test_sd_mean": {
                 n: float(result.tree["posterior"]["between_test_sd"].sel(coefficient=n).mean())
                 for n in ("Me", "Ke", "Ce", "Fmu")

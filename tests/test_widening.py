@@ -12,6 +12,7 @@ from bayes_sst.inference._widening import (
     MIN_TESTS,
     POPULATION,
     jackknife_factors,
+    jackknife_variance,
     left_out_groups,
     model_draws,
     widen,
@@ -93,18 +94,24 @@ def test_widen_stretches_the_draws_about_their_mean_and_keeps_the_models_own():
     assert model_draws(plain, "Me") is not None
 
 
-def test_beyond_twenty_tests_groups_of_tests_are_left_out_each_mixing_the_plan():
+def test_beyond_forty_tests_groups_of_tests_are_left_out_and_read_with_the_unequal_group_formula():
     assert left_out_groups(12) == [[j] for j in range(12)]
     groups = left_out_groups(45)
-    assert len(groups) == MAX_GROUPS == 20
+    assert len(groups) == MAX_GROUPS == 40
     assert sorted(j for g in groups for j in g) == list(range(45))
-    assert groups[0] == [0, 20, 40] and groups[19] == [19, 39]
-    # the delete-a-group jackknife of a mean is its standard error too: over many draws of 60
-    # values, 20 groups of 3 read the variance of the mean within a few percent
+    assert groups[0] == [0, 40] and groups[4] == [4, 44] and groups[5] == [5]
+    # with one test per group the unequal-group formula is the plain (J-1)/J sum of squares
     rng = np.random.default_rng(5)
+    values = rng.normal(0.0, 1.0, size=12)
+    without = np.array([np.delete(values, j).mean() for j in range(12)])
+    plain = 11 / 12 * np.sum((without - without.mean()) ** 2)
+    assert jackknife_variance(np.array([values.mean()]), without[:, None], np.ones(12))[0] == pytest.approx(plain)
+    # and over many draws of 45 values (40 groups: five pairs and 35 single tests) it reads the
+    # variance of the mean, 1/45, within a few percent
     ratios = []
-    for _ in range(400):
-        values = rng.normal(0.0, 1.0, size=60)
-        without = np.array([np.delete(values, g).mean() for g in left_out_groups(60)])
-        ratios.append(19 / 20 * np.sum((without - without.mean()) ** 2) / (1.0 / 60))
-    assert 0.93 < np.mean(ratios) < 1.07
+    sizes = np.array([len(g) for g in groups])
+    for _ in range(2000):
+        values = rng.normal(0.0, 1.0, size=45)
+        without = np.array([np.delete(values, g).mean() for g in groups])
+        ratios.append(jackknife_variance(np.array([values.mean()]), without[:, None], sizes)[0] * 45)
+    assert 0.97 < np.mean(ratios) < 1.03

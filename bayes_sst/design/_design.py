@@ -166,7 +166,7 @@ def _reason(targets, rows, floor, n_existing: int, max_tests: int) -> str:
         if name in floor:
             rel = floor[name]["relative_spread"]
             low = floor[name]["half_width_floor"]
-            needed_total = math.ceil((Z90 * rel / target) ** 2)
+            needed_total = math.ceil((Z90 * rel * floor[name].get("widening", 1.0) / target) ** 2)
             if low >= target:
                 text += (f"; its test-to-test variation ({rel:.2%} sd) alone sets a floor of {low:.2%} with "
                          f"{n_existing + max_tests} tests, which more samples per test cannot lower: "
@@ -291,7 +291,8 @@ def design(
     n_needed_repeat = _n_needed(curve_repeat, targets)
     floor = spread_floor(post, len(prepared) + max_tests)
     for name, entry in floor.items():
-        entry["half_width_floor"] *= widening[PARAMETERS.index(name)]
+        entry["widening"] = float(widening[PARAMETERS.index(name)])
+        entry["half_width_floor"] *= entry["widening"]
     reason = None if n_needed is not None else _reason(targets, curve, floor, len(prepared), max_tests)
     ess_median = np.median(ess_rec, axis=0)
     diagnostics = {

@@ -918,7 +918,9 @@ def diagnose(
     scorer = Scorer(tests, _scale(series, tests))
     alpha_start = None
     if run_tree is not None:
-        alpha_start = float(run_tree["posterior"]["alpha"].median())
+        from bayes_sst.inference._widening import model_draws
+
+        alpha_start = float(model_draws(run_tree, "alpha").median())
     say(f"fitting the base model to {len(tests)} periodic tests ...")
     base = fit_base(scorer, alpha_start=alpha_start)
     timings["base"] = time.perf_counter() - started

@@ -14,10 +14,16 @@ g_(-j) the estimate of g (Me, Ke, Ce, alpha, Fmu) from every test but j. Whole t
 out because samples within a test are correlated and the tests are the independent units.
 Each g_(-j) is read at the posterior mode of the series without test j (alpha at the mode,
 the coefficients at their conditional mean E[mu | hyperparameters], mu integrated out as in
-the sampler), every search started from the sampler's most probable draw: J searches in numpy,
-about 0.3-2 s for 10-20 tests. Beyond MAX_GROUPS tests, groups of tests are left out instead
-(the delete-a-group jackknife, G groups: (G-1)/G * sum_g (g_(-g) - mean)^2), so that the cost
-stays that of 20 searches.
+the sampler): one L-BFGS search in numpy for the whole series from the sampler's most probable
+draw, then one per left-out test from that mode, about 0.3-2 s for 10-40 tests. Beyond
+MAX_GROUPS tests, G = MAX_GROUPS groups of tests are left out instead, so that the cost stays
+that of MAX_GROUPS searches; the groups' sizes m_g may differ by one, and the delete-a-group
+jackknife for unequal groups (Busing, Meijer and van der Leeden 1999) is used,
+
+    h_g = J/m_g,  p_g = h_g g_all - (h_g - 1) g_(-g),  g_J = G g_all - sum_g (1 - m_g/J) g_(-g),
+    V_g = (1/G) sum_g (p_g - g_J)^2 / (h_g - 1),
+
+g_all the estimate from all tests; with one test per group it is the formula above.
 
 The population draws of g are then stretched about their mean by
 
@@ -50,10 +56,10 @@ MIN_TESTS = 6
 MAX_WIDENING = 3.0
 QUANTITY = "quantity"
 LEFT_OUT = "left_out"
-# beyond this many tests the jackknife leaves out groups of tests (the delete-a-group jackknife,
-# (G-1)/G * sum_g (g_(-g) - mean)^2): one search per group keeps its cost that of 20 tests
-# (each search reads every remaining test's moments, so one per test would grow as J^2)
-MAX_GROUPS = 20
+# beyond this many tests the jackknife leaves out groups of tests: one search per group keeps
+# its cost that of 40 tests (each search reads every remaining test's moments, so one per test
+# would grow as J^2: 200 tests would take some 30 s)
+MAX_GROUPS = 40
 
 
 def _without_tests(table, left_out):
@@ -118,7 +124,8 @@ def mode_jackknife(z: dict, table, priors, scales: dict, groups, max_iterations:
 def jackknife_modes(samples: dict, potential_energy, table, priors, scales: dict, coefficient_scale,
                     test_ids) -> "xr.Dataset":
     """The jackknife group of a run: the estimates of (Me, Ke, Ce, alpha, Fmu) in SI units from
-    all tests (all_tests) and without each test (without_test, test x quantity), at the
+    all tests (all_tests) and without each test or group of tests (without_test, dims
+    left_out x quantity; each left_out label joins its tests' ids with '+'), at the
     posterior modes found from the sampler's most probable draw (a search from the sampler's
     own start can end on a lesser mode that the chains left: on one sixth-simulator series it
     read alpha 0.586 where the chains sat at 0.533)."""
@@ -144,21 +151,34 @@ def jackknife_modes(samples: dict, potential_energy, table, priors, scales: dict
     return group
 
 
+def jackknife_variance(all_tests: np.ndarray, without: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The delete-a-group jackknife variance (module docstring) of each column of `without`
+    (G, P), the estimates without each group, groups of `sizes` (G,) tests, all_tests (P,)."""
+    sizes = np.asarray(sizes, dtype=float)
+    n_tests, n_groups = sizes.sum(), len(sizes)
+    h = (n_tests / sizes)[:, None]
+    pseudo = h * all_tests[None, :] - (h - 1.0) * without
+    centre = n_groups * all_tests - np.sum((1.0 - sizes / n_tests)[:, None] * without, axis=0)
+    return np.sum((pseudo - centre) ** 2 / (h - 1.0), axis=0) / n_groups
+
+
 def jackknife_factors(jackknife, posterior) -> dict:
     """{name: {factor, ratio, shift_test, shift_sd}} for each population value: the stretch
     f_g, the ratio sqrt(V_g / Var_post(g)) it comes from, and the test (or group of tests)
     whose removal moves the estimate furthest, by how many posterior sds (signed, from the mean
-    of the removals). A jackknife of fewer than MIN_TESTS removals stretches nothing."""
+    of the removals). A jackknife of fewer than MIN_TESTS removals stretches nothing.
+    `posterior` holds the model's own draws."""
     without = np.asarray(jackknife["without_test"].transpose(LEFT_OUT, QUANTITY).values, dtype=float)
+    all_tests = np.asarray(jackknife["all_tests"].sel({QUANTITY: list(POPULATION)}).values, dtype=float)
     labels = [str(t) for t in jackknife[LEFT_OUT].values]
-    n_groups = len(labels)
+    sizes = np.array([label.count("+") + 1 for label in labels])
+    variance = jackknife_variance(all_tests, without, sizes)
     centred = without - without.mean(axis=0)
-    variance = (n_groups - 1) / n_groups * np.sum(centred**2, axis=0)
     out = {}
     for k, name in enumerate(POPULATION):
         sd = float(np.asarray(posterior[name].values).std(ddof=1))
         ratio = float(np.sqrt(variance[k]) / sd) if sd > 0 else 1.0
-        factor = min(MAX_WIDENING, max(1.0, ratio)) if n_groups >= MIN_TESTS else 1.0
+        factor = min(MAX_WIDENING, max(1.0, ratio)) if len(labels) >= MIN_TESTS else 1.0
         j = int(np.argmax(np.abs(centred[:, k])))
         out[name] = {"factor": factor, "ratio": ratio, "shift_test": labels[j],
                      "shift_sd": float(centred[j, k] / sd) if sd > 0 else 0.0}
@@ -179,15 +199,28 @@ def widen(tree):
     model = xr.Dataset({name: post[name] for name in POPULATION})
     model.attrs["meaning"] = ("the model's own population draws, before the widening by the tests' jackknife "
                               "(attribute 'widening' of the tree; bayes_sst.inference._widening)")
+    bounds = _alpha_bounds(tree)
     stretched = {}
     for name in POPULATION:
         x = post[name]
         centre = x.mean()
-        stretched[name] = (centre + factors[name]["factor"] * (x - centre)).assign_attrs(x.attrs)
+        y = centre + factors[name]["factor"] * (x - centre)
+        if name == "alpha" and bounds is not None:
+            # the exponent's prior support: a stretch does not carry draws where the model has none
+            y = y.clip(*bounds)
+        stretched[name] = y.assign_attrs(x.attrs)
     tree["posterior"] = post.assign(stretched)
     tree["model_posterior"] = model
     tree.attrs["widening"] = json.dumps(factors)
     return tree
+
+
+def _alpha_bounds(tree) -> tuple[float, float] | None:
+    """The support of the exponent's prior, from the run's priors record."""
+    priors = json.loads(tree.attrs.get("priors", "") or "{}").get("alpha") or {}
+    if "low" in priors and "high" in priors:
+        return float(priors["low"]), float(priors["high"])
+    return None
 
 
 def widening_of(tree) -> dict:
