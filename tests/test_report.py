@@ -209,6 +209,10 @@ def test_report_json_sections_and_healthy_run(runs):
     for row in data["tests"]:
         for name in ("rms_force", "peak_force", "energy", "phase_residual"):
             assert 0.0 <= row["statistics"][name]["p_value"] <= 1.0
+    # five tests are too few to read the tests' scatter from: nothing widened, and the page says so
+    assert set(data["widening"]) == {"Me", "Ke", "Ce", "alpha", "Fmu"}
+    assert all(w["factor"] == 1.0 for w in data["widening"].values())
+    assert "<th>widened</th>" in runs["report"].html and "<td>x1.00</td>" in runs["report"].html
     pit = np.asarray(data["calibration"]["loo_pit"]["values"])
     assert pit.min() >= 0 and pit.max() <= 1 and abs(pit.mean() - 0.5) < 0.1
     assert data["conclusion"]["sentences"]

@@ -288,6 +288,8 @@ def build_report(run, *, draws: int = DEFAULT_DRAWS, seed: int = 0, series=None,
         "parameters": parameters,
         "correlations": correlations,
         "between_test_spread": run_numbers["between_test_spread"],
+        # each population interval's stretch by the tests' jackknife ({} for runs fitted without it)
+        "widening": run_numbers.get("widening", {}),
         "calibration": {
             "coverage_50": overall[0.5],
             "coverage_90": overall[0.9],
