@@ -440,20 +440,15 @@ def fit(
             total = replace(total, draws=total.draws + draws)
             tree = build_tree(seed + 1, samples, extra, scaled, moments, prepared, priors, total, series, signals)
             timings["posterior"] += time.perf_counter() - start
-        if widen:
-            from bayes_sst.inference._widening import jackknife_modes
-
-            start = time.perf_counter()
-            tree["jackknife"] = jackknife_modes(samples, extra["potential_energy"], start_now, scaled,
-                                                _site_scales(inverse_mass), moments.coefficient_scale,
-                                                moments.test_ids)
-            timings["jackknife"] = timings.get("jackknife", 0.0) + time.perf_counter() - start
-            _say(progress, f"tests left out one at a time in {timings['jackknife']:.1f} s (the intervals' check "
-                           "against the tests' own scatter)")
+        # what the jackknife of the final fit starts from (widen, below)
+        last_fit.update(samples=samples, potential=extra["potential_energy"], table=start_now, priors=scaled,
+                        scales=_site_scales(inverse_mass))
         if release_compiled:
             del mcmc, kernel
             _release_compiled_programs()
         return tree
+
+    last_fit: dict = {}
 
     def mass_spread(tree) -> float:
         return largest_chain_spread(tree["posterior"], "Me")
@@ -482,8 +477,16 @@ def fit(
             refit.update(held_fit_mass_spread=held_spread, shared=True, ignored_spread=HELD_MASS_SPREAD[0])
         tree.attrs["mass_refit"] = json.dumps(refit)
     if widen:
+        from bayes_sst.inference._widening import jackknife_modes
         from bayes_sst.inference._widening import widen as widen_tree
 
+        start = time.perf_counter()
+        tree["jackknife"] = jackknife_modes(last_fit["samples"], last_fit["potential"], last_fit["table"],
+                                            last_fit["priors"], last_fit["scales"], moments.coefficient_scale,
+                                            moments.test_ids)
+        timings["jackknife"] = time.perf_counter() - start
+        _say(progress, f"tests left out one at a time in {timings['jackknife']:.1f} s (the intervals' check "
+                       "against the tests' own scatter)")
         tree = widen_tree(tree)
     if notes:
         tree.attrs["signal_notes"] = json.dumps(notes)

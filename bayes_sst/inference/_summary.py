@@ -168,9 +168,9 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     posterior = tree["posterior"].to_dataset()
     # the between-test sds relative to the population values of the same draws: the model's own
     # (a widened run stretches the reported population draws, not the spreads)
-    model = posterior
-    if "model_posterior" in tree.children:
-        model = posterior.assign(tree["model_posterior"].to_dataset().data_vars)
+    from bayes_sst.inference._widening import MAX_WIDENING, model_posterior, widening_of
+
+    model = model_posterior(tree)
     stats = tree["sample_stats"].to_dataset()
     mixing = _mixing(tree)
     r_hat, ess_bulk = mixing["r_hat"], mixing["ess_bulk"]
@@ -300,8 +300,6 @@ def summarize(tree, *, seconds: float | None = None) -> dict:
     priors = _tree_priors(tree)
     if priors is not None:
         summary["priors"] = priors
-    from bayes_sst.inference._widening import MAX_WIDENING, widening_of
-
     widening = widening_of(tree)
     if widening:
         summary["widening"] = widening

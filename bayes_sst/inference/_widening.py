@@ -87,19 +87,18 @@ def mode_estimates(z: dict, table, priors) -> np.ndarray:
     """(Me, Ke, Ce, alpha, Fmu) in the table's scaled units at the unconstrained sites z (a
     posterior mode): alpha there, the coefficients at their conditional mean
     E[mu | hyperparameters] = Q^-1 r (bayes_sst.inference._collapsed)."""
-    from bayes_sst.inference._collapsed import _reduced_whitened, population_posterior, test_terms
+    from bayes_sst.inference._collapsed import draw_coefficients
     from bayes_sst.inference._model import constrained_sites
     from bayes_sst.inference._priors import ALPHA_SPREAD_SITE, GAIN_SITE
 
     sites = constrained_sites(z, priors)
-    gain = sites.get(GAIN_SITE, 1.0)
     deviation = None if priors.alpha_spread is None else sites[ALPHA_SPREAD_SITE] * priors.deviation_scale
-    whitened, noise, _, _ = _reduced_whitened(table, sites["alpha"], np.asarray(sites["phi"]),
-                                              np.asarray(sites["sigma"]), np, gain, deviation)
-    rho = np.asarray(sites["spread"]) * np.asarray(priors.varying)
-    terms = test_terms(whitened, np.asarray(table.n_pairs), noise, rho, np)
-    Q, r = population_posterior(terms, np.asarray(priors.mean), np.asarray(priors.sd), np)
-    mu = np.linalg.solve(np.asarray(Q), np.asarray(r))
+    n_tests = table.n_pairs.shape[0]
+    # zero deviates: the conditional mean of mu (and of each theta_j, unused)
+    mu = draw_coefficients(np.zeros(4), np.zeros((n_tests, 4)), table, sites["alpha"],
+                           np.asarray(sites["spread"]) * np.asarray(priors.varying), np.asarray(sites["phi"]),
+                           np.asarray(sites["sigma"]), np.asarray(priors.mean), np.asarray(priors.sd), xp=np,
+                           gain=sites.get(GAIN_SITE, 1.0), deviation=deviation).mu
     return np.array([mu[0], mu[1], mu[2], float(sites["alpha"]), mu[3]])
 
 
@@ -227,6 +226,15 @@ def widening_of(tree) -> dict:
     """The run's widening record ({} for a run fitted without it)."""
     text = tree.attrs.get("widening", "")
     return json.loads(text) if text else {}
+
+
+def model_posterior(tree):
+    """The run's posterior dataset with its population values the model's own (model_posterior
+    where the run was widened): the draws each draw's spreads and test coefficients belong to."""
+    post = tree["posterior"].to_dataset()
+    if "model_posterior" in tree.children:
+        post = post.assign(tree["model_posterior"].to_dataset().data_vars)
+    return post
 
 
 def model_draws(tree, name: str):

@@ -70,9 +70,9 @@ def thinned_posterior(tree, max_draws: int) -> xr.Dataset:
     """The posterior with each chain thinned evenly so that chains*draws <= max_draws, its
     population values the model's own (model_posterior where the run widened its intervals):
     each draw's test coefficients were drawn with them."""
-    post = tree["posterior"].to_dataset()
-    if "model_posterior" in tree.children:
-        post = post.assign(tree["model_posterior"].to_dataset().data_vars)
+    from bayes_sst.inference._widening import model_posterior
+
+    post = model_posterior(tree)
     chains, draws = post.sizes["chain"], post.sizes["draw"]
     per_chain = max(1, min(draws, max_draws // max(chains, 1)))
     pick = np.linspace(0, draws - 1, per_chain).round().astype(int)
