@@ -347,6 +347,51 @@ def test_numpy_gradient_of_the_start_equals_numpyros_gradient(spread_prior, fric
         assert got["spread"][1] != 0.0  # a shared coefficient's spread still has its prior's pull
 
 
+@pytest.mark.parametrize("spread_prior, friction_load, alpha_spread", SITE_CASES)
+def test_the_samplers_whitened_potential_is_numpyros_potential_of_the_model(spread_prior, friction_load,
+                                                                          alpha_spread):
+    """fit samples w with z_global = centre + root w (WhitenedFrame) through whitened_potential,
+    in place of NumPyro's potential of table_force_model with a dense mass over z_global. The
+    two must be one density: the same value at the same point, JAX's gradient over w equal to
+    root' times NumPyro's gradient over z_global (and the per-test sites' as they are), and the
+    frame's numpy maps (to_sampler, from_sampler, gradient_to_sampler) consistent with them."""
+    from numpyro.infer.util import potential_energy as numpyro_potential
+
+    from bayes_sst.inference._model import (WhitenedFrame, global_sites, potential_and_gradient,
+                                            table_force_model, unconstrained_start, whitened_potential)
+
+    rng, table, numpy_table, priors, values = _site_problem(13, spread_prior, friction_load=friction_load,
+                                                            alpha_spread=alpha_spread)
+    z = unconstrained_start(values, priors)
+    size = sum(int(np.size(z[name])) for name in global_sites(z))
+    loose = rng.standard_normal((size, size))
+    frame = WhitenedFrame.around(z, loose @ loose.T + 0.5 * np.eye(size))
+    for shift in (0.0, 0.5, -1.0):
+        moved = {name: value + shift * rng.standard_normal(np.shape(value)) for name, value in z.items()}
+        params = frame.to_sampler(moved)
+        back = frame.from_sampler(params)
+        for name in moved:
+            np.testing.assert_allclose(back[name], moved[name], rtol=1e-12, atol=1e-12, err_msg=name)
+
+        def model_potential(sites):
+            return numpyro_potential(table_force_model, (table, priors), {}, sites)
+
+        expected_value = float(model_potential({k: jnp.asarray(v) for k, v in moved.items()}))
+        expected_gradient = frame.gradient_to_sampler(
+            jax.grad(model_potential)({k: jnp.asarray(v) for k, v in moved.items()}))
+        value, gradient = jax.value_and_grad(whitened_potential)(
+            {k: jnp.asarray(v) for k, v in params.items()}, table, priors, frame)
+        assert float(value) == pytest.approx(expected_value, rel=1e-10, abs=1e-8)
+        numpy_value, numpy_gradient = potential_and_gradient(moved, numpy_table, priors)
+        assert numpy_value == pytest.approx(expected_value, rel=1e-10, abs=1e-8)
+        for name in params:
+            np.testing.assert_allclose(np.asarray(gradient[name]), expected_gradient[name], rtol=1e-7, atol=1e-8,
+                                       err_msg=name)
+            np.testing.assert_allclose(frame.gradient_to_sampler(numpy_gradient)[name], expected_gradient[name],
+                                       rtol=1e-7, atol=1e-8, err_msg=name)
+        assert np.all(np.abs(expected_gradient["global"]) > 0)
+
+
 def _start_problem():
     """A small collapsed problem, its priors and a start in the unconstrained space."""
     from bayes_sst.inference._model import unconstrained_start

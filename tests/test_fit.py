@@ -440,9 +440,9 @@ def test_a_between_test_spread_beyond_a_tables_repeatability_is_named():
     assert wide_spreads(clean) == {}
 
 
-def test_a_start_the_numpy_potential_cannot_evaluate_falls_back_to_numpyros_initialisation(monkeypatch):
+def test_a_start_the_numpy_potential_cannot_evaluate_is_evaluated_by_numpyro(monkeypatch):
     """fit hands NUTS a start with a potential computed in numpy; where that potential is not
-    finite the start is left to NumPyro's own initialisation, and the fit still recovers the
+    finite NumPyro evaluates the start's potential itself, and the fit still recovers the
     truth of a six-test series."""
     import bayes_sst.inference._model as model
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+from functools import partial
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
@@ -38,10 +39,10 @@ class SamplerSettings:
     seed: int = 0
     target_accept: float = 0.85
     max_tree_depth: int = 8
-    # a dense mass matrix for the five global sites (alpha and the between-test spreads are
-    # correlated), diagonal for the per-test noise sites: a fully dense one in 2J+5
-    # dimensions adapts poorly for hundreds of tests (maximum tree depth on every draw)
-    dense_mass: bool | tuple[tuple[str, ...], ...] = (("alpha", "spread"),)
+    # the global sites (alpha and the between-test spreads, which are correlated) are sampled
+    # in coordinates whitened by their curvature at the mode (_model.WhitenedFrame), the per-test
+    # noise sites with their asymptotic scales: a fully dense mass in 2J+5 dimensions adapts
+    # poorly for hundreds of tests (maximum tree depth on every draw)
     # when R-hat or the bulk ESS falls short of its limit (summary.short_of_limits), the chains
     # go on for `draws` more, up to this many times; the tree's sampler settings then give the
     # total draws. Why: 2 of 100 randomised virtual-table series ended at population R-hat
@@ -297,19 +298,19 @@ def fit(
     import bayes_sst._jaxconfig  # noqa: F401  (float64, CPU devices for chains)
     import jax
     import jax.numpy as jnp
-    from numpyro.infer import MCMC, NUTS, init_to_value
+    from numpyro.infer import MCMC, NUTS
     from numpyro.infer.util import ParamInfo
 
     from bayes_sst.inference._collapsed import moment_table
     from bayes_sst.inference._model import (
         ScaledPriors,
+        WhitenedFrame,
         constrained_sites,
         global_curvature,
-        global_sites,
         posterior_mode,
         potential_and_gradient,
-        table_force_model,
         unconstrained_start,
+        whitened_potential,
     )
     from bayes_sst.inference._posterior import build_tree
 
@@ -368,17 +369,17 @@ def fit(
         z = posterior_mode(z, start_now, scaled, _site_scales(inverse_mass))
         inverse_mass = _with_curvature(_initial_inverse_mass(moments, constrained_sites(z, scaled), priors),
                                        global_curvature(z, start_now, scaled))
-        default_blocks = settings.dense_mass == SamplerSettings.dense_mass
-        dense_mass = settings.dense_mass if isinstance(settings.dense_mass, bool) else list(settings.dense_mass)
-        if default_blocks:
-            dense_mass = [global_sites(z)]
+        # the global sites' dense block becomes a change of coordinates (WhitenedFrame), so the
+        # sampler itself works with a diagonal mass: unit for w, the asymptotic scales for the
+        # per-test sites
+        frame = WhitenedFrame.around(z, inverse_mass[_global_key(inverse_mass)])
+        sampler_frame = frame._replace(centre=jnp.asarray(frame.centre), root=jnp.asarray(frame.root))
         kernel = NUTS(
-            table_force_model,
-            inverse_mass_matrix=inverse_mass if default_blocks else None,
+            potential_fn=partial(whitened_potential, table=table_now, priors=scaled, frame=sampler_frame),
+            inverse_mass_matrix=jnp.concatenate([jnp.ones(len(frame.centre)), inverse_mass[("phi",)],
+                                                 inverse_mass[("sigma",)]]),
             target_accept_prob=settings.target_accept,
             max_tree_depth=settings.max_tree_depth,
-            dense_mass=dense_mass,
-            init_strategy=init_to_value(values=start_values),
             adapt_mass_matrix=settings.adapt_mass_matrix,
         )
         n_devices = jax.local_device_count()
@@ -397,21 +398,25 @@ def fit(
         potentials, gradients = zip(*(potential_and_gradient(start, start_now, scaled) for start in starts))
         usable = [np.isfinite(u) and all(np.all(np.isfinite(g)) for g in gradient.values())
                   for u, gradient in zip(potentials, gradients)]
-        if all(usable):
-            def per_chain(values):
-                stacked = np.stack([np.asarray(value, dtype=float) for value in values])
-                return jnp.asarray(stacked if chains > 1 else stacked[0])
 
+        def per_chain(values):
+            stacked = np.stack([np.asarray(value, dtype=float) for value in values])
+            return jnp.asarray(stacked if chains > 1 else stacked[0])
+
+        sampler_starts = [frame.to_sampler(start) for start in starts]
+        sampler_z = {name: per_chain([start[name] for start in sampler_starts]) for name in sampler_starts[0]}
+        if all(usable):
+            sampler_gradients = [frame.gradient_to_sampler(gradient) for gradient in gradients]
             init = ParamInfo(
-                z={name: per_chain([start[name] for start in starts]) for name in z},
+                z=sampler_z,
                 potential_energy=per_chain(potentials),
-                z_grad={name: per_chain([gradient[name] for gradient in gradients]) for name in z},
+                z_grad={name: per_chain([gradient[name] for gradient in sampler_gradients]) for name in sampler_z},
             )
-        else:  # a start the numpy potential cannot evaluate is left to NumPyro's own initialisation
-            init = None
+        else:  # a start the numpy potential cannot evaluate: NumPyro evaluates it (inside the program)
+            init = sampler_z
         fields = ("diverging", "num_steps", "accept_prob", "energy", "potential_energy", "adapt_state.step_size")
-        mcmc.run(jax.random.PRNGKey(seed), table_now, scaled, init_params=init, extra_fields=fields)
-        samples = jax.device_get(mcmc.get_samples(group_by_chain=True))
+        mcmc.run(jax.random.PRNGKey(seed), init_params=init, extra_fields=fields)
+        samples = constrained_sites(frame.from_sampler(jax.device_get(mcmc.get_samples(group_by_chain=True))), scaled)
         extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
         seconds = time.perf_counter() - start
         timings["sampling"] = timings.get("sampling", 0.0) + seconds
@@ -430,8 +435,8 @@ def fit(
                            f"drawing {draws} more per chain ...")
             start = time.perf_counter()
             mcmc.post_warmup_state = mcmc.last_state
-            mcmc.run(mcmc.post_warmup_state.rng_key, table_now, scaled, extra_fields=fields)
-            more = jax.device_get(mcmc.get_samples(group_by_chain=True))
+            mcmc.run(mcmc.post_warmup_state.rng_key, extra_fields=fields)
+            more = constrained_sites(frame.from_sampler(jax.device_get(mcmc.get_samples(group_by_chain=True))), scaled)
             more_extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
             samples = {k: np.concatenate([samples[k], more[k]], axis=1) for k in samples}
             extra = {k: np.concatenate([extra[k], more_extra[k]], axis=1) for k in extra}

@@ -51,6 +51,10 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
     coefficient and innovation sd, scaled units), and where the series has tests under
     different payloads, payload_friction_gain (kappa, see _collapsed.friction_factors). See
     _collapsed.py.
+
+    fit samples this density through whitened_potential, the same potential in whitened
+    coordinates of the global sites (tests/test_collapsed.py checks value and gradient against
+    NumPyro's potential of this model); the model itself is what NumPyro's other tools take.
     """
     n_tests = table.n_pairs.shape[0]
     alpha = numpyro.sample(
@@ -91,11 +95,11 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
 # leapfrog steps).
 
 
-def _interval(z, low, high):
+def _interval(z, low, high, xp=np):
     """x = low + (high - low) sigmoid(z) and log|dx/dz| (NumPyro's transform to an interval)."""
-    z = np.asarray(z, dtype=float)
-    x = low + (high - low) / (1.0 + np.exp(-z))
-    return x, math.log(high - low) - np.logaddexp(0.0, z) - np.logaddexp(0.0, -z)
+    z = xp.asarray(z, dtype=float)
+    x = low + (high - low) / (1.0 + xp.exp(-z))
+    return x, math.log(high - low) - xp.logaddexp(0.0, z) - xp.logaddexp(0.0, -z)
 
 
 def _to_interval(x, low, high):
@@ -103,9 +107,9 @@ def _to_interval(x, low, high):
     return np.log(share) - np.log1p(-share)
 
 
-def _log_normal_density(x, loc, scale):
-    log_x = np.log(x)
-    return -log_x - np.log(scale) - 0.5 * math.log(2 * math.pi) - 0.5 * ((log_x - loc) / scale) ** 2
+def _log_normal_density(x, loc, scale, xp=np):
+    log_x = xp.log(x)
+    return -log_x - xp.log(scale) - 0.5 * math.log(2 * math.pi) - 0.5 * ((log_x - loc) / scale) ** 2
 
 
 def unconstrained_start(values: dict, priors: ScaledPriors) -> dict:
@@ -135,7 +139,7 @@ def constrained_sites(z: dict, priors: ScaledPriors) -> dict:
     if priors.gain is not None:
         sites[GAIN_SITE] = _interval(z[GAIN_SITE], *priors.gain[2:])[0]
     if priors.alpha_spread is not None:
-        sites[ALPHA_SPREAD_SITE] = np.exp(float(z[ALPHA_SPREAD_SITE]))
+        sites[ALPHA_SPREAD_SITE] = np.exp(np.asarray(z[ALPHA_SPREAD_SITE], dtype=float))
     return sites
 
 
@@ -143,7 +147,7 @@ def _truncated_normal_log_density(x, mean, sd, low, high):
     """log of N(mean, sd^2) truncated to [low, high] at x; the normaliser is
     Phi((high - m)/s) - Phi((low - m)/s)."""
     cdf = lambda t: 0.5 * math.erfc(-t / math.sqrt(2.0))  # noqa: E731
-    return (-0.5 * ((float(x) - mean) / sd) ** 2 - math.log(sd) - 0.5 * math.log(2 * math.pi)
+    return (-0.5 * ((x - mean) / sd) ** 2 - math.log(sd) - 0.5 * math.log(2 * math.pi)
             - math.log(cdf((high - mean) / sd) - cdf((low - mean) / sd)))
 
 
@@ -155,56 +159,61 @@ def _interval_site_gradient(z, d_log_density_dx, mean, sd, low, high):
     return (d_log_density_dx - (x - mean) / sd ** 2) * (high - low) * share * (1.0 - share) + 1.0 - 2.0 * share
 
 
-def _sites_and_log_prior(z: dict, priors: ScaledPriors):
+def _sites_and_log_prior(z: dict, priors: ScaledPriors, xp=np):
     """The sites' values at unconstrained z and sum_s log p_s(x_s(z)) + sum_s log|dx_s/dz_s|
-    (the truncated normals' normaliser is Phi((high - m)/s) - Phi((low - m)/s))."""
-    alpha, log_jacobian = _interval(z["alpha"], priors.alpha_low, priors.alpha_high)
-    phi, phi_jacobian = _interval(z["phi"], -PHI_BOUND, PHI_BOUND)
-    spread, sigma = np.exp(np.asarray(z["spread"], dtype=float)), np.exp(np.asarray(z["sigma"], dtype=float))
+    (the truncated normals' normaliser is Phi((high - m)/s) - Phi((low - m)/s)). In numpy the
+    scalars come back as Python floats; under JAX (xp=jax.numpy) as traced arrays."""
+    scalar = float if xp is np else (lambda x: x)
+    alpha, log_jacobian = _interval(z["alpha"], priors.alpha_low, priors.alpha_high, xp)
+    phi, phi_jacobian = _interval(z["phi"], -PHI_BOUND, PHI_BOUND, xp)
+    spread, sigma = xp.exp(xp.asarray(z["spread"], dtype=float)), xp.exp(xp.asarray(z["sigma"], dtype=float))
     gain, gain_log_prior, gain_jacobian = 1.0, 0.0, 0.0
     if priors.gain is not None:
-        gain, gain_jacobian = _interval(z[GAIN_SITE], *priors.gain[2:])
+        gain, gain_jacobian = _interval(z[GAIN_SITE], *priors.gain[2:], xp)
         gain_log_prior = _truncated_normal_log_density(gain, *priors.gain)
     log_prior = (
         _truncated_normal_log_density(alpha, priors.alpha_mean, priors.alpha_sd, priors.alpha_low, priors.alpha_high)
         + gain_log_prior
-        + np.sum(_log_normal_density(spread, np.log(np.asarray(priors.spread_median, dtype=float)),
-                                     np.asarray(priors.spread_log_sd, dtype=float)))
+        + xp.sum(_log_normal_density(spread, xp.log(xp.asarray(priors.spread_median, dtype=float)),
+                                     xp.asarray(priors.spread_log_sd, dtype=float), xp))
         - phi.size * math.log(2 * PHI_BOUND)
-        + np.sum(_log_normal_density(sigma, priors.noise_loc, priors.noise_log_sd))
+        + xp.sum(_log_normal_density(sigma, priors.noise_loc, priors.noise_log_sd, xp))
     )
-    jacobian = (float(log_jacobian) + float(gain_jacobian) + np.sum(z["spread"]) + np.sum(phi_jacobian)
-                + np.sum(z["sigma"]))
-    sites = {"alpha": float(alpha), "phi": phi, "spread": spread, "sigma": sigma, "gain": float(gain),
+    jacobian = (scalar(log_jacobian) + scalar(gain_jacobian) + xp.sum(z["spread"]) + xp.sum(phi_jacobian)
+                + xp.sum(z["sigma"]))
+    sites = {"alpha": scalar(alpha), "phi": phi, "spread": spread, "sigma": sigma, "gain": scalar(gain),
              "deviation": None}
     if priors.alpha_spread is not None:
-        log_tau = float(z[ALPHA_SPREAD_SITE])
-        tau = math.exp(log_tau)
-        log_prior += float(_log_normal_density(tau, math.log(priors.alpha_spread[0]), priors.alpha_spread[1]))
+        log_tau = scalar(z[ALPHA_SPREAD_SITE])
+        tau = xp.exp(log_tau)
+        log_prior += scalar(_log_normal_density(tau, math.log(priors.alpha_spread[0]), priors.alpha_spread[1], xp))
         jacobian += log_tau
         sites["deviation"] = tau * priors.deviation_scale
-    return sites, float(log_prior + jacobian)
+    return sites, scalar(log_prior + jacobian)
 
 
-def _likelihood_arguments(sites: dict, priors: ScaledPriors) -> tuple:
-    """collapsed_log_likelihood's (alpha, rho, phi, sigma, prior mean, prior sd) in numpy."""
-    return (sites["alpha"], sites["spread"] * np.asarray(priors.varying, dtype=float), sites["phi"], sites["sigma"],
-            np.asarray(priors.mean, dtype=float), np.asarray(priors.sd, dtype=float))
+def _likelihood_arguments(sites: dict, priors: ScaledPriors, xp=np) -> tuple:
+    """collapsed_log_likelihood's (alpha, rho, phi, sigma, prior mean, prior sd)."""
+    return (sites["alpha"], sites["spread"] * xp.asarray(priors.varying, dtype=float), sites["phi"], sites["sigma"],
+            xp.asarray(priors.mean, dtype=float), xp.asarray(priors.sd, dtype=float))
 
 
-def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors) -> float:
-    """-log p(sites, y) + log-Jacobian terms of table_force_model at unconstrained z, in numpy.
+def potential_energy(z: dict, table: MomentTable, priors: ScaledPriors, xp=np):
+    """-log p(sites, y) + log-Jacobian terms of table_force_model at unconstrained z.
 
         U(z) = -[sum_s log p_s(x_s(z)) + sum_s log|dx_s/dz_s| + log p(y | alpha, rho, phi, sigma)],
 
     the same number NumPyro's potential_energy gives (tests/test_collapsed.py compares them).
-    `table` holds numpy arrays (moment_table(lagged, np)). Where the gradient is needed too,
-    potential_and_gradient evaluates the likelihood once for both.
+    In numpy (a float; `table` holds numpy arrays, moment_table(lagged, np)) for the sampler's
+    start and the jackknife; under JAX (xp=jax.numpy, a jax table) inside the sampler
+    (whitened_potential). Where the gradient is needed in numpy too, potential_and_gradient
+    evaluates the likelihood once for both.
     """
-    sites, log_prior = _sites_and_log_prior(z, priors)
-    likelihood = collapsed_log_likelihood(table, *_likelihood_arguments(sites, priors), np, gain=sites["gain"],
+    sites, log_prior = _sites_and_log_prior(z, priors, xp)
+    likelihood = collapsed_log_likelihood(table, *_likelihood_arguments(sites, priors, xp), xp, gain=sites["gain"],
                                           deviation=sites["deviation"])
-    return float(-(log_prior + likelihood))
+    value = -(log_prior + likelihood)
+    return float(value) if xp is np else value
 
 
 def potential_and_gradient(z: dict, table: MomentTable, priors: ScaledPriors) -> tuple[float, dict]:
@@ -325,3 +334,65 @@ def global_curvature(z: dict, table: MomentTable, priors: ScaledPriors, step: fl
                for name, index in coordinates]
     hessian = np.stack(columns, axis=1)
     return 0.5 * (hessian + hessian.T)
+
+
+class WhitenedFrame(NamedTuple):
+    """The sampler's coordinates: the global sites (global_sites) as w with
+
+        z_g = centre + root w,   root root' = C,
+
+    C the global block of the sampler's inverse mass matrix (the inverse curvature at the mode,
+    fit._with_curvature), the per-test sites phi and sigma as they are.
+
+    Why: the mass matrix stays fixed (SamplerSettings.adapt_mass_matrix), and NUTS over z_g
+    with the dense inverse mass C takes the same trajectories as NUTS over w with a unit mass.
+    Sampling w, with the potential handed to NUTS directly (whitened_potential), leaves NumPyro's
+    dense-mass algebra and its tracing of the model out of the compiled sampler: measured on a
+    stand-in model of the same sites, the dense block alone cost 1.0 s of a 4.7 s compilation.
+    """
+
+    names: tuple[str, ...]
+    sizes: tuple[int, ...]
+    centre: np.ndarray  # (k,)
+    root: np.ndarray  # (k, k), lower triangular
+
+    @classmethod
+    def around(cls, z: dict, covariance) -> "WhitenedFrame":
+        """The frame centred on z's global sites with root the Cholesky factor of covariance."""
+        names = global_sites(z)
+        sizes = tuple(int(np.size(z[name])) for name in names)
+        centre = np.concatenate([np.ravel(np.asarray(z[name], dtype=float)) for name in names])
+        root = np.linalg.cholesky(np.asarray(covariance, dtype=float))
+        return cls(names, sizes, centre, root)
+
+    def to_sampler(self, z: dict) -> dict:
+        """w, phi, sigma of one state z (numpy)."""
+        centred = np.concatenate([np.ravel(np.asarray(z[name], dtype=float)) for name in self.names]) - self.centre
+        from scipy.linalg import solve_triangular
+
+        return {"global": solve_triangular(self.root, centred, lower=True),
+                "phi": np.asarray(z["phi"], dtype=float), "sigma": np.asarray(z["sigma"], dtype=float)}
+
+    def gradient_to_sampler(self, gradient: dict) -> dict:
+        """dU/dw = root' dU/dz_g beside dU/dphi, dU/dsigma (numpy)."""
+        global_gradient = np.concatenate([np.ravel(np.asarray(gradient[name], dtype=float)) for name in self.names])
+        return {"global": self.root.T @ global_gradient, "phi": np.asarray(gradient["phi"], dtype=float),
+                "sigma": np.asarray(gradient["sigma"], dtype=float)}
+
+    def from_sampler(self, params: dict, xp=np) -> dict:
+        """z from w, phi, sigma; w may carry leading axes (chains, draws)."""
+        global_z = xp.asarray(self.centre) + xp.asarray(params["global"]) @ xp.asarray(self.root).T
+        z = {"phi": params["phi"], "sigma": params["sigma"]}
+        position = 0
+        for name, size in zip(self.names, self.sizes):
+            part = global_z[..., position:position + size]
+            z[name] = part if name == "spread" else part[..., 0]
+            position += size
+        return z
+
+
+def whitened_potential(params: dict, table: MomentTable, priors: ScaledPriors, frame: WhitenedFrame):
+    """U(z(w, phi, sigma)) under JAX, the sampler's potential (WhitenedFrame; potential_energy).
+    Its gradient is JAX's, through the transforms and priors, and collapsed_gradient's closed
+    form for the likelihood."""
+    return potential_energy(frame.from_sampler(params, jnp), table, priors, jnp)
