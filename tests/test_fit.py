@@ -455,6 +455,23 @@ def test_a_start_the_numpy_potential_cannot_evaluate_is_evaluated_by_numpyro(mon
         assert abs(summary["parameters"][name]["mean"] / truth[name] - 1) < 0.1, name
 
 
+def test_a_start_no_potential_can_evaluate_stops_the_fit_with_a_clear_error(monkeypatch):
+    """Where neither the numpy potential nor the sampler's own JAX potential is finite at the
+    chains' start, fit raises an error that says so instead of handing NUTS an infinite energy
+    (NUTS would reject every move and return the start as its draws without complaint)."""
+    import jax.numpy as jnp
+
+    import bayes_sst.inference._model as model
+
+    exact = model.potential_and_gradient
+    monkeypatch.setattr(model, "potential_and_gradient", lambda *args, **kwargs: (float("nan"), exact(*args, **kwargs)[1]))
+    monkeypatch.setattr(model, "whitened_potential",
+                        lambda params, table, priors, frame: jnp.nan * jnp.sum(params["global"]))
+    series = simulate("sst-paper", seed=4, spread=0.02, plan=default_plan("sst-paper")[:6])
+    with pytest.raises(RuntimeError, match="not finite at the chains' start"):
+        fit(series, chains=2, draws=20, warmup=20, seed=1)
+
+
 @pytest.mark.slow
 def test_a_drifting_accelerometer_on_the_lugre_generator_does_not_pin_a_wrong_mass(tmp_path):
     """The second independent generator's clean series at 200 Hz (benchmarks/lugre_generator.py,

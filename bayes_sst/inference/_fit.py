@@ -53,7 +53,8 @@ class SamplerSettings:
     # and only the step size adapts. Why: re-estimated from 25-100 warm-up draws in 2J+5
     # dimensions the diagonal came out noisier than the scales it started from; measured at 200
     # tests, the adapted step size fell from 0.30 to 0.22 and draws took 27 leapfrog steps
-    # instead of 15, with the same bulk ESS (1820 against 1867)
+    # instead of 15, with the same bulk ESS (1820 against 1867). True adapts a diagonal over the
+    # sampler's coordinates (the whitened global sites w, phi, sigma; _model.WhitenedFrame)
     adapt_mass_matrix: bool = False
 
 
@@ -84,8 +85,6 @@ def _initial_values(moments: LaggedMoments, alpha: float, with_gain: bool = Fals
     """Per-test least-squares start for sigma and phi at a plausible alpha (scaled units); the
     payload's friction gain at 1 (the table description's physics) where it is sampled, the
     exponent's between-test sd at alpha_spread where it is."""
-    import jax.numpy as jnp
-
     grid = moments.alpha_grid
     g = int(np.argmin(np.abs(grid - alpha)))
     sigmas, phis = [], []
@@ -102,15 +101,15 @@ def _initial_values(moments: LaggedMoments, alpha: float, with_gain: bool = Fals
         sigmas.append(np.sqrt(rss / n * max(1 - phi * phi, 0.05)))
         phis.append(phi)
     values = {
-        "alpha": jnp.asarray(alpha),
-        "spread": jnp.full(4, 0.02),
-        "phi": jnp.asarray(phis),
-        "sigma": jnp.asarray(sigmas),
+        "alpha": np.asarray(alpha, dtype=float),
+        "spread": np.full(4, 0.02),
+        "phi": np.asarray(phis, dtype=float),
+        "sigma": np.asarray(sigmas, dtype=float),
     }
     if alpha_spread is not None:
-        values[ALPHA_SPREAD_SITE] = jnp.asarray(alpha_spread)
+        values[ALPHA_SPREAD_SITE] = np.asarray(alpha_spread, dtype=float)
     if with_gain:
-        values[GAIN_SITE] = jnp.asarray(1.0)
+        values[GAIN_SITE] = np.asarray(1.0)
     return values
 
 
@@ -132,8 +131,6 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
     inverse curvature there (_with_curvature), and the sampler keeps that mass matrix
     (SamplerSettings.adapt_mass_matrix).
     """
-    import jax.numpy as jnp
-
     from bayes_sst.inference._model import PHI_BOUND, global_sites
 
     n = np.maximum(np.asarray(moments.n_pairs, dtype=float), 4.0)
@@ -153,9 +150,9 @@ def _initial_inverse_mass(moments: LaggedMoments, start: dict, priors: Priors, a
         sd_gain = gain_sd * (high - low) / ((gain - low) * (high - gain))
         global_variances = np.append(global_variances, sd_gain**2)
     return {
-        global_sites(start): jnp.diag(jnp.asarray(global_variances)),
-        ("phi",): jnp.asarray(sd_phi**2),
-        ("sigma",): jnp.asarray(sd_log_sigma**2),
+        global_sites(start): np.diag(global_variances),
+        ("phi",): sd_phi**2,
+        ("sigma",): sd_log_sigma**2,
     }
 
 
@@ -216,8 +213,6 @@ def _site_scales(inverse_mass: dict) -> dict:
 def _with_curvature(inverse_mass: dict, hessian: np.ndarray) -> dict:
     """inverse_mass with its global block replaced by the inverse of the curvature `hessian`
     (global_curvature) where that is positive definite and finite; as it was otherwise."""
-    import jax.numpy as jnp
-
     if not np.all(np.isfinite(hessian)):
         return inverse_mass
     try:
@@ -226,7 +221,58 @@ def _with_curvature(inverse_mass: dict, hessian: np.ndarray) -> dict:
         return inverse_mass
     inverse_root = np.linalg.solve(root, np.eye(len(hessian)))
     covariance = inverse_root.T @ inverse_root
-    return {**inverse_mass, _global_key(inverse_mass): jnp.asarray(0.5 * (covariance + covariance.T))}
+    return {**inverse_mass, _global_key(inverse_mass): 0.5 * (covariance + covariance.T)}
+
+
+def _sampler_start(starts: list[dict], mode: dict, frame, potential, table, priors):
+    """The chains' start for NumPyro (ParamInfo: the whitened coordinates, their potential and
+    gradient), one chain per entry of `starts` (unconstrained sites).
+
+    The potential and gradient come from numpy (_model.potential_and_gradient). A start where
+    they are not finite is replaced by the mode; where even the mode's numpy potential is not
+    finite, the sampler's own JAX potential is evaluated instead (jitted here, once), and a start
+    that it cannot evaluate either stops the fit with an error: NUTS started at an infinite
+    potential rejects every move and returns the start as its draws, without an error of its own.
+    """
+    import jax
+    import jax.numpy as jnp
+    from numpyro.infer.util import ParamInfo
+
+    from bayes_sst.inference._model import potential_and_gradient
+
+    def finite(value, gradient):
+        return bool(np.isfinite(value)) and all(np.all(np.isfinite(g)) for g in gradient.values())
+
+    numpy_value = lambda start: potential_and_gradient(start, table, priors)  # noqa: E731
+    evaluated = [numpy_value(start) for start in starts]
+    if not all(finite(*e) for e in evaluated):
+        at_mode = numpy_value(mode)
+        starts = [start if finite(*e) else mode for start, e in zip(starts, evaluated)]
+        evaluated = [e if finite(*e) else at_mode for e in evaluated]
+    sampler_starts = [frame.to_sampler(start) for start in starts]
+    if all(finite(*e) for e in evaluated):
+        values = [e[0] for e in evaluated]
+        gradients = [frame.gradient_to_sampler(e[1]) for e in evaluated]
+    else:
+        value_and_gradient = jax.jit(jax.value_and_grad(potential))
+        pairs = [value_and_gradient({k: jnp.asarray(v) for k, v in start.items()}) for start in sampler_starts]
+        values = [float(value) for value, _ in pairs]
+        gradients = [jax.device_get(gradient) for _, gradient in pairs]
+        if not all(finite(value, gradient) for value, gradient in zip(values, gradients)):
+            raise RuntimeError(
+                "the posterior's potential energy is not finite at the chains' start, the posterior mode "
+                f"(alpha, spreads: {np.round(frame.centre, 4).tolist()} in the unconstrained space): the series' "
+                "tests give no usable likelihood there. Check the records (fit --signal options, or leave out the "
+                "test the signal notes name)")
+
+    def per_chain(parts):
+        stacked = np.stack([np.asarray(part, dtype=float) for part in parts])
+        return jnp.asarray(stacked if len(parts) > 1 else stacked[0])
+
+    names = list(sampler_starts[0])
+    return ParamInfo(z={name: per_chain([start[name] for start in sampler_starts]) for name in names},
+                     potential_energy=per_chain(values),
+                     z_grad={name: per_chain([gradient[name] for gradient in gradients]) for name in names})
 
 
 def _release_compiled_programs():
@@ -299,7 +345,6 @@ def fit(
     import jax
     import jax.numpy as jnp
     from numpyro.infer import MCMC, NUTS
-    from numpyro.infer.util import ParamInfo
 
     from bayes_sst.inference._collapsed import moment_table
     from bayes_sst.inference._model import (
@@ -308,7 +353,6 @@ def fit(
         constrained_sites,
         global_curvature,
         posterior_mode,
-        potential_and_gradient,
         unconstrained_start,
         whitened_potential,
     )
@@ -374,8 +418,9 @@ def fit(
         # per-test sites
         frame = WhitenedFrame.around(z, inverse_mass[_global_key(inverse_mass)])
         sampler_frame = frame._replace(centre=jnp.asarray(frame.centre), root=jnp.asarray(frame.root))
+        potential = partial(whitened_potential, table=table_now, priors=scaled, frame=sampler_frame)
         kernel = NUTS(
-            potential_fn=partial(whitened_potential, table=table_now, priors=scaled, frame=sampler_frame),
+            potential_fn=potential,
             inverse_mass_matrix=jnp.concatenate([jnp.ones(len(frame.centre)), inverse_mass[("phi",)],
                                                  inverse_mass[("sigma",)]]),
             target_accept_prob=settings.target_accept,
@@ -395,25 +440,7 @@ def fit(
         _say(progress, f"sampling {chains} chains x ({warmup} warm-up + {draws} draws), NUTS ({chain_method}) ...")
         start = time.perf_counter()
         starts = _dispersed_starts(z, inverse_mass, chains, seed, START_DISPERSION)
-        potentials, gradients = zip(*(potential_and_gradient(start, start_now, scaled) for start in starts))
-        usable = [np.isfinite(u) and all(np.all(np.isfinite(g)) for g in gradient.values())
-                  for u, gradient in zip(potentials, gradients)]
-
-        def per_chain(values):
-            stacked = np.stack([np.asarray(value, dtype=float) for value in values])
-            return jnp.asarray(stacked if chains > 1 else stacked[0])
-
-        sampler_starts = [frame.to_sampler(start) for start in starts]
-        sampler_z = {name: per_chain([start[name] for start in sampler_starts]) for name in sampler_starts[0]}
-        if all(usable):
-            sampler_gradients = [frame.gradient_to_sampler(gradient) for gradient in gradients]
-            init = ParamInfo(
-                z=sampler_z,
-                potential_energy=per_chain(potentials),
-                z_grad={name: per_chain([gradient[name] for gradient in sampler_gradients]) for name in sampler_z},
-            )
-        else:  # a start the numpy potential cannot evaluate: NumPyro evaluates it (inside the program)
-            init = sampler_z
+        init = _sampler_start(starts, z, frame, potential, start_now, scaled)
         fields = ("diverging", "num_steps", "accept_prob", "energy", "potential_energy", "adapt_state.step_size")
         mcmc.run(jax.random.PRNGKey(seed), init_params=init, extra_fields=fields)
         samples = constrained_sites(frame.from_sampler(jax.device_get(mcmc.get_samples(group_by_chain=True))), scaled)

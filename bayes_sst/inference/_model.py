@@ -1,5 +1,6 @@
-"""The NumPyro model (priors and the collapsed likelihood) and, in numpy, the sampler's start:
-its sites in NumPyro's unconstrained space and their potential energy."""
+"""The NumPyro model (priors and the collapsed likelihood); its potential energy over NumPyro's
+unconstrained sites, in numpy (the sampler's start, the mode, the jackknife) and under JAX in
+the whitened coordinates the sampler moves in (WhitenedFrame, whitened_potential)."""
 
 from __future__ import annotations
 
@@ -82,17 +83,16 @@ def table_force_model(table: MomentTable, priors: ScaledPriors):
     )
 
 
-# The sampler's starting state, in numpy. NumPyro's own initialisation (find_valid_initial_params)
-# evaluates the potential's gradient inside the compiled sampler, a second inlined copy of the
-# model's gradient beside the leapfrog's: handing NUTS a start whose potential is computed here
-# lets XLA drop that copy (measured on the 20-test example: the sampler's compile 7.2-8.1 s ->
-# 6.0 s). The start's gradient comes from numpy too (potential_gradient). It must be the true
-# one: a state keeps its gradient until a transition moves it, so with a zero gradient every
-# transition from the start opened with a wrong momentum half-step, was rejected, and left the
-# chain where it was; the step size's dual averaging read those rejections as a step size far
-# too large and fell from 1 to 1e-3 within four iterations, and the next dozen warm-up
-# iterations ran at the maximum tree depth (measured at 200 tests: a quarter of the warm-up's
-# leapfrog steps).
+# The sampler's starting state, in numpy. Left to NumPyro, the start's potential and gradient
+# are evaluated inside the compiled sampler, a second inlined copy of the gradient beside the
+# leapfrog's: handing NUTS a start whose potential is computed here lets XLA drop that copy
+# (measured on the 20-test example: the sampler's compile 7.2-8.1 s -> 6.0 s). The start's
+# gradient comes from numpy too (potential_gradient). It must be the true one: a state keeps
+# its gradient until a transition moves it, so with a zero gradient every transition from the
+# start opened with a wrong momentum half-step, was rejected, and left the chain where it was;
+# the step size's dual averaging read those rejections as a step size far too large and fell
+# from 1 to 1e-3 within four iterations, and the next dozen warm-up iterations ran at the
+# maximum tree depth (measured at 200 tests: a quarter of the warm-up's leapfrog steps).
 
 
 def _interval(z, low, high, xp=np):
@@ -305,7 +305,7 @@ def posterior_mode(z: dict, table: MomentTable, priors: ScaledPriors, scales: di
 
 def global_sites(sites) -> tuple[str, ...]:
     """The sites shared by all tests among `sites` (names, or a dict keyed by them), in the order
-    of the sampler's dense mass block: alpha, the four spreads, the exponent's between-test sd
+    of the sampler's whitened coordinates (WhitenedFrame): alpha, the four spreads, the exponent's between-test sd
     and the payload's friction gain where they are sampled."""
     return (("alpha", "spread") + ((ALPHA_SPREAD_SITE,) if ALPHA_SPREAD_SITE in sites else ())
             + ((GAIN_SITE,) if GAIN_SITE in sites else ()))
