@@ -45,7 +45,7 @@ from scipy.special import erfinv, ndtr
 from bayes_sst.inference import _smalllinalg as sl
 from bayes_sst.inference._collapsed import load_share, payload_friction_factor
 from bayes_sst.inference._priors import ALPHA_SPREAD_VARIABLE, GAIN_SITE
-from bayes_sst.inference._widening import model_draws, widening_of
+from bayes_sst.inference._widening import flat_model_draws, widening_of
 from bayes_sst.inference._statistics import (
     ALPHA_MAX,
     ALPHA_MIN,
@@ -98,13 +98,6 @@ class DesignPosterior:
                                None if self.gain is None else self.gain[index], self.ignored_spread)
 
 
-def _flat(tree, name):
-    # the model's own draws: the design predicts the model's posterior and applies the run's
-    # widening to what it predicts (widening_factors)
-    values = np.asarray(model_draws(tree, name).values, dtype=float)
-    return values.reshape((-1,) + values.shape[2:])
-
-
 def widening_factors(tree) -> np.ndarray:
     """The run's widening of the population intervals (bayes_sst.inference._widening), in
     PARAMETERS order; ones for a run fitted without it. The design predicts the model's own
@@ -116,7 +109,9 @@ def widening_factors(tree) -> np.ndarray:
 
 def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
     """DesignPosterior of a run tree; `prepared` are the run's tests in its order (run_prepared)."""
-    mu_si = np.stack([_flat(tree, name) for name in COEFFICIENTS], axis=-1)
+    # the model's own draws: the design predicts the model's posterior and applies the run's
+    # widening to what it predicts (widening_factors)
+    mu_si = np.stack([flat_model_draws(tree, name) for name in COEFFICIENTS], axis=-1)
     scale = np.abs(mu_si.mean(axis=0))
     force_scale = float(np.sqrt(np.mean(np.concatenate([((t.F - t.payload_kg * t.a)[t.keep]) ** 2 for t in prepared]))))
     priors = json.loads(tree.attrs.get("priors", "{}") or "{}")
@@ -134,16 +129,16 @@ def design_posterior(tree, prepared: Sequence[PreparedTest]) -> DesignPosterior:
     ignored = priors.get("between_test_spread", {}).get("ignored_by_sharing") or {}
     return DesignPosterior(
         mu=mu_si / scale,
-        alpha=_flat(tree, "alpha"),
-        rho=_flat(tree, "between_test_sd") / scale,
-        phi=_flat(tree, "phi"),
-        sigma=_flat(tree, "sigma") / force_scale,
+        alpha=flat_model_draws(tree, "alpha"),
+        rho=flat_model_draws(tree, "between_test_sd") / scale,
+        phi=flat_model_draws(tree, "phi"),
+        sigma=flat_model_draws(tree, "sigma") / force_scale,
         scale=scale,
         force_scale=force_scale,
         prior_mean=centres / scale,
         prior_sd=relative_sd * np.abs(centres) / scale,
         alpha_prior_sd=float(priors.get("alpha", {}).get("sd", 0.5)),
-        gain=_flat(tree, GAIN_SITE) if GAIN_SITE in tree["posterior"] else None,
+        gain=flat_model_draws(tree, GAIN_SITE) if GAIN_SITE in tree["posterior"] else None,
         ignored_spread=(np.array([float(ignored.get(name, 0.0)) for name in COEFFICIENTS]) if ignored else None),
     )
 

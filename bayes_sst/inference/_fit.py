@@ -164,19 +164,6 @@ def _global_key(inverse_mass: dict) -> tuple[str, ...]:
     return global_sites(set().union(*inverse_mass))
 
 
-def _split_global(vector, block) -> dict:
-    """A vector over the dense block's coordinates as {site: part} (alpha, the exponent's spread
-    and the gain scalars)."""
-    vector = np.asarray(vector, dtype=float)
-    parts = {"alpha": vector[0], "spread": vector[1:5]}
-    position = 5
-    for name in (ALPHA_SPREAD_SITE, GAIN_SITE):
-        if name in block:
-            parts[name] = vector[position]
-            position += 1
-    return parts
-
-
 # Each chain starts this many (conditional) posterior sds away from the mode, in a random
 # direction drawn from the starting mass matrix's Gaussian: chains that begin apart and still
 # agree are what R-hat can vouch for; chains begun at one point agree for free.
@@ -186,12 +173,14 @@ START_DISPERSION = 2.0
 def _dispersed_starts(mode: dict, inverse_mass: dict, chains: int, seed: int, dispersion: float) -> list[dict]:
     """One start per chain: mode + dispersion * (draw from N(0, inverse_mass)), in NumPyro's
     unconstrained space (the global block dense, the per-test sites diagonal)."""
+    from bayes_sst.inference._model import split_global
+
     rng = np.random.default_rng([seed, 20_251_126])
     block = _global_key(inverse_mass)
     global_root = np.linalg.cholesky(np.asarray(inverse_mass[block], dtype=float))
     starts = []
     for _ in range(chains):
-        shift = _split_global(global_root @ rng.standard_normal(global_root.shape[0]), block)
+        shift = split_global(global_root @ rng.standard_normal(global_root.shape[0]), block)
         start = {name: np.asarray(mode[name], dtype=float) + dispersion * shift[name] for name in shift}
         for name in ("phi", "sigma"):
             sd = np.sqrt(np.asarray(inverse_mass[(name,)], dtype=float))
@@ -202,9 +191,11 @@ def _dispersed_starts(mode: dict, inverse_mass: dict, chains: int, seed: int, di
 
 def _site_scales(inverse_mass: dict) -> dict:
     """Each site's rough posterior sd in the unconstrained space, from _initial_inverse_mass."""
+    from bayes_sst.inference._model import split_global
+
     block = _global_key(inverse_mass)
     return {
-        **_split_global(np.sqrt(np.diag(np.asarray(inverse_mass[block]))), block),
+        **split_global(np.sqrt(np.diag(np.asarray(inverse_mass[block], dtype=float))), block),
         "phi": np.sqrt(np.asarray(inverse_mass[("phi",)])),
         "sigma": np.sqrt(np.asarray(inverse_mass[("sigma",)])),
     }
@@ -441,9 +432,14 @@ def fit(
         start = time.perf_counter()
         starts = _dispersed_starts(z, inverse_mass, chains, seed, START_DISPERSION)
         init = _sampler_start(starts, z, frame, potential, start_now, scaled)
+
+        def drawn_sites():
+            # the chains' draws as the model's sites (from the sampler's whitened coordinates)
+            return constrained_sites(frame.from_sampler(jax.device_get(mcmc.get_samples(group_by_chain=True))), scaled)
+
         fields = ("diverging", "num_steps", "accept_prob", "energy", "potential_energy", "adapt_state.step_size")
         mcmc.run(jax.random.PRNGKey(seed), init_params=init, extra_fields=fields)
-        samples = constrained_sites(frame.from_sampler(jax.device_get(mcmc.get_samples(group_by_chain=True))), scaled)
+        samples = drawn_sites()
         extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
         seconds = time.perf_counter() - start
         timings["sampling"] = timings.get("sampling", 0.0) + seconds
@@ -463,7 +459,7 @@ def fit(
             start = time.perf_counter()
             mcmc.post_warmup_state = mcmc.last_state
             mcmc.run(mcmc.post_warmup_state.rng_key, extra_fields=fields)
-            more = constrained_sites(frame.from_sampler(jax.device_get(mcmc.get_samples(group_by_chain=True))), scaled)
+            more = drawn_sites()
             more_extra = jax.device_get(mcmc.get_extra_fields(group_by_chain=True))
             samples = {k: np.concatenate([samples[k], more[k]], axis=1) for k in samples}
             extra = {k: np.concatenate([extra[k], more_extra[k]], axis=1) for k in extra}

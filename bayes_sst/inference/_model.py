@@ -311,6 +311,18 @@ def global_sites(sites) -> tuple[str, ...]:
             + ((GAIN_SITE,) if GAIN_SITE in sites else ()))
 
 
+def split_global(vector, names) -> dict:
+    """{site: part} of a vector over the global sites' coordinates (`names` in global_sites
+    order; leading axes kept): four entries for the spreads, one for each other site."""
+    parts, position = {}, 0
+    for name in names:
+        size = 4 if name == "spread" else 1
+        part = vector[..., position:position + size]
+        parts[name] = part if name == "spread" else part[..., 0]
+        position += size
+    return parts
+
+
 def global_curvature(z: dict, table: MomentTable, priors: ScaledPriors, step: float = 1e-5) -> np.ndarray:
     """d2U/dz dz' over the global sites (global_sites: alpha, the four spreads, the exponent's
     spread, the gain) at z, the per-test sites held: central differences of potential_gradient,
@@ -352,7 +364,6 @@ class WhitenedFrame(NamedTuple):
     """
 
     names: tuple[str, ...]
-    sizes: tuple[int, ...]
     centre: np.ndarray  # (k,)
     root: np.ndarray  # (k, k), lower triangular
 
@@ -360,10 +371,9 @@ class WhitenedFrame(NamedTuple):
     def around(cls, z: dict, covariance) -> "WhitenedFrame":
         """The frame centred on z's global sites with root the Cholesky factor of covariance."""
         names = global_sites(z)
-        sizes = tuple(int(np.size(z[name])) for name in names)
         centre = np.concatenate([np.ravel(np.asarray(z[name], dtype=float)) for name in names])
         root = np.linalg.cholesky(np.asarray(covariance, dtype=float))
-        return cls(names, sizes, centre, root)
+        return cls(names, centre, root)
 
     def to_sampler(self, z: dict) -> dict:
         """w, phi, sigma of one state z (numpy)."""
@@ -382,13 +392,7 @@ class WhitenedFrame(NamedTuple):
     def from_sampler(self, params: dict, xp=np) -> dict:
         """z from w, phi, sigma; w may carry leading axes (chains, draws)."""
         global_z = xp.asarray(self.centre) + xp.asarray(params["global"]) @ xp.asarray(self.root).T
-        z = {"phi": params["phi"], "sigma": params["sigma"]}
-        position = 0
-        for name, size in zip(self.names, self.sizes):
-            part = global_z[..., position:position + size]
-            z[name] = part if name == "spread" else part[..., 0]
-            position += size
-        return z
+        return {**split_global(global_z, self.names), "phi": params["phi"], "sigma": params["sigma"]}
 
 
 def whitened_potential(params: dict, table: MomentTable, priors: ScaledPriors, frame: WhitenedFrame):

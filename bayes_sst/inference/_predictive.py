@@ -18,6 +18,7 @@ import numpy as np
 
 from bayes_sst.inference._statistics import COEFFICIENTS, damping_columns
 from bayes_sst.inference._summary import run_left_out
+from bayes_sst.inference._widening import flat_model_draws
 from bayes_sst.signals import PreparedTest, SignalOptions
 
 
@@ -138,15 +139,6 @@ class TestPredictive:
     replicated: np.ndarray  # (draws, n) model force plus an AR(1) residual draw, N
 
 
-def _flat(tree, name):
-    # the model's own alpha, the one each draw's test coefficients were drawn with (a widened
-    # run keeps it in model_posterior; bayes_sst.inference._widening)
-    from bayes_sst.inference._widening import model_draws
-
-    values = np.asarray(model_draws(tree, name).values)
-    return values.reshape((-1,) + values.shape[2:])
-
-
 def _ar1_paths(phi, sigma, n, rng):
     """(draws, n) stationary AR(1) paths with coefficient phi and innovation sd sigma per draw."""
     draws = len(phi)
@@ -161,15 +153,17 @@ def _ar1_paths(phi, sigma, n, rng):
 def posterior_predictive(tree, prepared: list[PreparedTest], *, n_draws: int = 200, seed: int = 0):
     """TestPredictive for every test, from n_draws posterior draws picked evenly over the chains."""
     rng = np.random.default_rng(seed)
-    alpha = _flat(tree, "alpha")
+    # the model's own alpha, the one each draw's test coefficients were drawn with (a widened
+    # run keeps it in model_posterior; bayes_sst.inference._widening)
+    alpha = flat_model_draws(tree, "alpha")
     total = len(alpha)
     pick = np.linspace(0, total - 1, min(n_draws, total)).round().astype(int)
-    theta = np.stack([_flat(tree, f"{name}_test") for name in COEFFICIENTS], axis=-1)[pick]  # (d, J, 4)
-    phi = _flat(tree, "phi")[pick]
-    sigma = _flat(tree, "sigma")[pick]
+    theta = np.stack([flat_model_draws(tree, f"{name}_test") for name in COEFFICIENTS], axis=-1)[pick]  # (d, J, 4)
+    phi = flat_model_draws(tree, "phi")[pick]
+    sigma = flat_model_draws(tree, "sigma")[pick]
     alpha = alpha[pick]
     # a fit with the exponent varying between tests (fit --per-test-alpha) has each test's own
-    exponents = _flat(tree, "alpha_test")[pick] if "alpha_test" in tree["posterior"] else None
+    exponents = flat_model_draws(tree, "alpha_test")[pick] if "alpha_test" in tree["posterior"] else None
     out = []
     for j, test in enumerate(prepared):
         test_alpha = alpha if exponents is None else exponents[:, j]

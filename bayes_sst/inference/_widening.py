@@ -242,3 +242,10 @@ def model_draws(tree, name: str):
     if "model_posterior" in tree.children and name in tree["model_posterior"]:
         return tree["model_posterior"][name]
     return tree["posterior"][name]
+
+
+def flat_model_draws(tree, name: str) -> np.ndarray:
+    """model_draws of `name` (any site) as a float array with chains and draws joined:
+    (chains*draws, ...)."""
+    values = np.asarray(model_draws(tree, name).values, dtype=float)
+    return values.reshape((-1,) + values.shape[2:])
