@@ -94,7 +94,13 @@ def main():
         row.update(diagnose_s=round(time.perf_counter() - started, 1), selected=result["selected"],
                    top=[(r["name"], round(r["score"], 1), round(r["score_se"], 1)) for r in result["ranking"][:3]],
                    shrink=result["shrink"], rms_before=result["rms_before"], rms_after=result["rms_after"],
-                   noise_floor=result["noise_floor"])
+                   noise_floor=result["noise_floor"],
+                   # the one-column effects' own statistics, for the coefficient rule's margins
+                   coefficients={r["name"]: {"amplitude_z": r.get("amplitude_z"),
+                                             "amplitude_law_nats": r.get("amplitude_law_nats"),
+                                             "rms_ratio": r.get("rms_ratio")}
+                                 for r in result["ranking"]
+                                 if r["name"] in ("nonlinear_stiffness", "position_friction", "drift")})
         if effect is not None:
             true_effect = truth["effect"]
             reported = _reported(result["ranking"], effect)

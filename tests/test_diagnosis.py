@@ -1412,6 +1412,58 @@ def test_a_specimen_damped_to_the_top_of_its_range_has_no_resonance_and_is_at_it
     assert not effect_by_name("stiction").at_setting_bound({"stribeck_velocity": 0.04})
 
 
+def test_a_specimen_bound_binds_only_where_the_likelihood_rises_past_it():
+    """The bound makes the specimen the base model only where a fit at 1.5 times the top damping
+    is better by more than PAST_BOUND_NATS: a likelihood still rising (the valve generator's
+    delay-following 'specimen', 19.5 % unbounded) binds; a top flat in damping (the sixth
+    simulator's seed 408, +0.2 nats from 10 to 15 %: a 3.9 t specimen at 20 Hz read at 18.4 Hz
+    along the frequency-damping ridge) does not."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._screen import PAST_BOUND_NATS, _bound_binds
+    from bayes_sst.effects import effect_by_name
+    from bayes_sst.effects._library import PAST_BOUND_FACTOR, POLISHED_DAMPING
+
+    specimen = effect_by_name("specimen")
+    top = {"specimen_frequency": 18.4, "specimen_damping": POLISHED_DAMPING[1]}
+    assert specimen.past_bound(top) == {"specimen_frequency": 18.4,
+                                        "specimen_damping": PAST_BOUND_FACTOR * POLISHED_DAMPING[1]}
+
+    class Scorer:
+        """log marginal of a specimen term = gain(damping); records what was fitted."""
+
+        def __init__(self, gain):
+            self.gain, self.calls = gain, []
+
+        def fit(self, terms, alpha, *, spread=None):
+            (effect, setting), = terms
+            self.calls.append((dict(setting), alpha))
+            return SimpleNamespace(log_marginal=self.gain(setting["specimen_damping"]), alpha=alpha)
+
+    def binds(gain, setting=top):
+        scorer = Scorer(gain)
+        best = SimpleNamespace(log_marginal=gain(setting["specimen_damping"]), alpha=0.55)
+        return _bound_binds(scorer, specimen, [], setting, best), scorer.calls
+
+    rising, calls = binds(lambda zeta: 100.0 + 100.0 * zeta)  # +5 nats from 10 to 15 %
+    assert rising and len(calls) == 1
+    (fitted, alpha), = calls
+    assert fitted["specimen_frequency"] == 18.4 and fitted["specimen_damping"] == pytest.approx(0.15) and alpha == 0.55
+    flat, _ = binds(lambda zeta: 203.3 + (0.2 if zeta > 0.12 else 0.0))
+    assert not flat
+    just_over, _ = binds(lambda zeta: 10.0 + (PAST_BOUND_NATS + 0.01 if zeta > 0.12 else 0.0))
+    just_under, _ = binds(lambda zeta: 10.0 + (PAST_BOUND_NATS - 0.01 if zeta > 0.12 else 0.0))
+    assert just_over and not just_under
+    falling, _ = binds(lambda zeta: 50.0 - 100.0 * zeta)
+    assert not falling
+    # inside the range nothing is fitted and nothing binds
+    inside, calls = binds(lambda zeta: 100.0 * zeta, {"specimen_frequency": 18.4, "specimen_damping": 0.08})
+    assert not inside and calls == []
+    # an effect with a bound but no setting past it: the bound binds as before
+    no_past = SimpleNamespace(at_setting_bound=lambda s: True, past_bound=lambda s: None)
+    assert _bound_binds(Scorer(lambda zeta: 0.0), no_past, [], top, SimpleNamespace(log_marginal=0.0, alpha=0.5))
+
+
 def _breakaway_of(series):
     from bayes_sst.diagnosis._diagnose import breakaway_reading
 
