@@ -70,7 +70,11 @@ def main():
     from bayes_sst.diagnosis import diagnose
     from bayes_sst.inference import fit
     from bayes_sst.inference._summary import summarize
+    from bayes_sst.effects import FORCE_EFFECTS
     from bayes_sst.io import load_series
+
+    # the one-column effects the coefficient rule may select (Effect.z_selectable)
+    coefficient_rule_effects = {e.name for e in FORCE_EFFECTS if e.z_selectable}
 
     rows = []
     for label, seed, effect in cases:
@@ -97,10 +101,8 @@ def main():
                    noise_floor=result["noise_floor"],
                    # the one-column effects' own statistics, for the coefficient rule's margins
                    coefficients={r["name"]: {"amplitude_z": r.get("amplitude_z"),
-                                             "amplitude_law_nats": r.get("amplitude_law_nats"),
-                                             "rms_ratio": r.get("rms_ratio")}
-                                 for r in result["ranking"]
-                                 if r["name"] in ("nonlinear_stiffness", "position_friction", "drift")})
+                                             "amplitude_law_nats": r.get("amplitude_law_nats")}
+                                 for r in result["ranking"] if r["name"] in coefficient_rule_effects})
         if effect is not None:
             true_effect = truth["effect"]
             reported = _reported(result["ranking"], effect)

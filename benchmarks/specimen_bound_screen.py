@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -27,22 +28,19 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 
+# simulators with a command line (--seed, --out; clean by default), run in a process of their
+# own: the valve generator forks workers, which must not happen inside this JAX process
+COMMAND_LINE = {"sixth": "sixth_generator.py", "fifth": "fifth_generator.py", "valve": "valve_generator.py",
+                "lugre": "lugre_generator.py"}
+
+
 def make(kind: str, seed: int, folder: str) -> None:
     """The clean series KIND:SEED in folder, unless it is there already."""
     if os.path.exists(os.path.join(folder, "series.json")):
         return
-    if kind == "fifth":
-        import fifth_generator
-        fifth_generator.make_series(seed, folder)
-    elif kind == "sixth":
-        import sixth_generator
-        sixth_generator.make_series(seed, folder)
-    elif kind == "valve":
-        import valve_generator
-        valve_generator.generate(seed, folder)
-    elif kind == "lugre":
-        import lugre_generator
-        lugre_generator.generate(seed, folder, verbose=False)
+    if kind in COMMAND_LINE:
+        subprocess.run([sys.executable, str(HERE / COMMAND_LINE[kind]), "--seed", str(seed), "--out", folder],
+                       check=True, stdout=subprocess.DEVNULL)
     elif kind == "first":
         import independent_generator
         independent_generator.make_series(seed, folder)
@@ -51,7 +49,7 @@ def make(kind: str, seed: int, folder: str) -> None:
         from bayes_sst.twin import random_series
         write_series(random_series(seed), folder)
     else:
-        raise SystemExit(f"unknown series kind {kind!r}: sixth, fifth, valve, lugre, first or twin")
+        raise SystemExit(f"unknown series kind {kind!r}: {', '.join(COMMAND_LINE)}, first or twin")
 
 
 def main():

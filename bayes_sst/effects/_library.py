@@ -101,7 +101,8 @@ class Effect:
     def at_setting_bound(self, setting: Mapping[str, float]) -> bool:
         """Whether the setting is at a bound beyond which the effect stops being itself (a
         resonance damped so heavily that it has no peak): such a fit is the base model, unless
-        the setting past_bound gives fits worse (the optimum is at the bound, not beyond it)."""
+        the fit at past_bound is no better by more than a margin (the optimum is at the bound,
+        not beyond it; bayes_sst.diagnosis._screen.PAST_BOUND_NATS)."""
         return False
 
     def past_bound(self, setting: Mapping[str, float]) -> dict[str, float] | None:
