@@ -37,14 +37,16 @@ def _rules(diagnosis: dict) -> dict[str, str]:
 def _first_round_amplitudes(diagnosis: dict) -> dict[str, dict[str, float]]:
     """{view: {effect: amplitude_z}} of each view's first screening (nothing given): how far each
     candidate's coefficient stood from zero on a series that has none, the figure a rule on the
-    coefficient alone would have to stay above."""
+    coefficient alone would have to stay above. A candidate at its bound (a coefficient of the
+    wrong sign, which is the base model) is left out: no rule can select it, whatever its z."""
     out: dict[str, dict[str, float]] = {}
     for step in diagnosis.get("steps", []):
         view = step.get("view", "default")
         if step.get("given") or view in out:
             continue
         out[view] = {c["name"]: round(float(c["amplitude_z"]), 2) for c in step["candidates"]
-                     if c.get("amplitude_z") is not None and math.isfinite(c["amplitude_z"])}
+                     if c.get("amplitude_z") is not None and math.isfinite(c["amplitude_z"])
+                     and not c.get("at_bound")}
     return out
 
 

@@ -12,7 +12,7 @@ columns] and response y_j = F_j (or an effect's re-read force) - m_payload*a_j:
 
 theta_j and mu are integrated out exactly (as in bayes_sst.inference._collapsed); phi_j and
 sigma_j are plugged in from the test's own least-squares residual, s_1, s_2 and alpha are profiled.
-With Scorer.consistent_noise (the reversal view's scorer), the plug-ins come instead from the
+With Scorer.consistent_noise (the reversal and stroke views' scorers), the plug-ins come instead from the
 residual of the model being scored (a first fit's y_j - X_j theta_j, effect coefficients at
 their one shared value), and the model is fitted again with them. Why: the least-squares
 residual lets an effect's coefficient take any value in each test. A column that is non-zero
@@ -23,7 +23,9 @@ residual where it was (192.8 -> 188.1 N): the likelihood was evaluated with a si
 the model's residual, and the log marginal fell by up to 229 nats for a column with a 1.23
 stiction in it. With the model's own residual the profile over the Stribeck velocity is
 smooth, peaks at 6.4-7.7 mm/s (true 6.8) with a ratio of 1.18-1.27 (true 1.23), +9.8 nats.
-The other views keep the least-squares plug-ins, with which their gates were set.
+A hinge column in the stroke view does the same with each test's Coulomb column
+(diagnosis._diagnose.CONSISTENT_NOISE_VIEWS). The default view keeps the least-squares
+plug-ins, with which its gates were set.
 
 Score: the leave-one-test-out log predictive density
 
@@ -204,12 +206,11 @@ class Scorer:
 
     def profile_alpha(self, terms: Sequence[Term], grid: Sequence[float]) -> ModelFit:
         """The model at the alpha of `grid` with the highest marginal likelihood."""
-        best = None
-        for alpha in grid:
-            fit = self.fit(terms, float(alpha))
-            if best is None or fit.log_marginal > best.log_marginal:
-                best = fit
-        return best
+        return max(self.alpha_fits(terms, grid), key=lambda fit: fit.log_marginal)
+
+    def alpha_fits(self, terms: Sequence[Term], grid: Sequence[float]) -> list[ModelFit]:
+        """The model at every alpha of `grid`."""
+        return [self.fit(terms, float(alpha)) for alpha in grid]
 
 
 def _noise_moments(payload: float, columns: Mapping[int, np.ndarray], p: int, phi: float,

@@ -252,6 +252,11 @@ class PositionFriction(Effect):
     # seed 4, where the amplitude law vetoes it too); a z of -9.5 (valve generator, seed 103) is
     # at the sign bound and never selected. 12, from 2026-11-30 until the amplitude law, missed
     # the valve generator's strong hinge at 9.7 (docs/diagnosis.md, the coefficient rule).
+    # Those z's were read at the profiled alpha; with alpha integrated out (since 2026-11-30
+    # late: the hinge trades with the damping exponent, diagnosis._screen.alpha_marginal_coefficients)
+    # a hinge beside a delay fell from 10.7 to 7.5 and one beside a drift from 10.4 to 6.6
+    # (sixth simulator, seeds 119 and 117), the true ones stayed at 9.6-73 (the valve
+    # generator's strong one, the sixth's seeds 104-122)
     z_selectable: bool = True
     coefficient_z: float | None = 8.0
     amplitude_power: float | None = 2.0
