@@ -208,9 +208,12 @@ class Scorer:
         """The model at the alpha of `grid` with the highest marginal likelihood."""
         return max(self.alpha_fits(terms, grid), key=lambda fit: fit.log_marginal)
 
-    def alpha_fits(self, terms: Sequence[Term], grid: Sequence[float]) -> list[ModelFit]:
-        """The model at every alpha of `grid`."""
-        return [self.fit(terms, float(alpha)) for alpha in grid]
+    def alpha_fits(self, terms: Sequence[Term], grid: Sequence[float],
+                   known: Sequence[ModelFit] = ()) -> list[ModelFit]:
+        """The model at every alpha of `grid`; known: fits of the same terms already made, reused
+        at their alphas (a fine grid around a coarse one's best shares its nodes)."""
+        made = {round(fit.alpha, 6): fit for fit in known}
+        return [made.get(round(float(alpha), 6)) or self.fit(terms, float(alpha)) for alpha in grid]
 
 
 def _noise_moments(payload: float, columns: Mapping[int, np.ndarray], p: int, phi: float,

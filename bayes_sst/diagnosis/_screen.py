@@ -116,8 +116,7 @@ def alpha_marginal_coefficients(fits: Sequence[ModelFit], k: int) -> tuple[np.nd
     logm = np.array([f.log_marginal for f in ordered])
     weights = np.exp(logm - logm.max()) * np.diff(edges)
     weights /= weights.sum()
-    means = np.array([_effect_coefficients(f, k)[0] for f in ordered])
-    sds = np.array([_effect_coefficients(f, k)[1] for f in ordered])
+    means, sds = (np.array(a) for a in zip(*(_effect_coefficients(f, k) for f in ordered)))
     mean = weights @ means
     var = weights @ (sds ** 2 + (means - mean) ** 2)
     return mean, np.sqrt(var)
@@ -273,7 +272,8 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit, *, wide_sear
     # a wide window: an unmodelled effect can bias alpha by 0.1 (a 3 ms delay moved it 0.6 -> 0.5)
     coarse_fits = scorer.alpha_fits(terms + [(effect, best_setting)], fine_alpha(current.alpha, 0.15, 0.025))
     coarse = max(coarse_fits, key=lambda f: f.log_marginal)
-    fine_fits = scorer.alpha_fits(terms + [(effect, best_setting)], fine_alpha(coarse.alpha, 0.025, 0.0125))
+    fine_fits = scorer.alpha_fits(terms + [(effect, best_setting)], fine_alpha(coarse.alpha, 0.025, 0.0125),
+                                  known=coarse_fits)
     fit = max(fine_fits, key=lambda f: f.log_marginal)
     diff = fit.elpd - current.elpd
     score = float(diff.sum())
