@@ -316,7 +316,6 @@ def test_design_command_writes_json_text_and_plot(small_run, capsys):
         assert data["curve"][0][name]["q50"] == pytest.approx(data["current"][name], rel=0.25)
     # recommended tests respect the table's limits
     limits = TableLimits(**data["limits"])
-    coefficients = {**{k: 1.0 for k in ("Me", "Ke", "Ce", "Fmu")}, "alpha": 0.5}
     for c in data["recommended"]:
         u, v, a = peak_motion(c["kind"], c["frequency_hz"], c["amplitude_m"])
         assert u <= limits.stroke_m * (1 + 1e-6) and v <= limits.velocity_m_s * (1 + 1e-6)

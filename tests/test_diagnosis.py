@@ -1575,7 +1575,6 @@ def _resting_record_reversals(static_ratio, rest_s=0.2, seed=4):
     sign = np.where(up, 1.0, -1.0)
     moving = tau < stroke
     u = np.where(moving, -sign * A * np.cos(w * tau), sign * A)
-    v = np.where(moving, sign * A * w * np.sin(w * tau), 0.0)
     a = np.where(moving, sign * A * w * w * np.cos(w * tau), 0.0)
     share = np.clip((tau - stroke) / rest_s, 0.0, 1.0)
     friction = np.where(moving, Fk * sign, sign * (Fk - share * (Fk + static_ratio * Fk)))

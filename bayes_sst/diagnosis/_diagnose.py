@@ -452,7 +452,6 @@ def locate(tests: Sequence[EffectData], residuals, floors) -> list[dict[str, Any
                     # the region's mean square over its own noise floor, minus one
                     "excess_ratio": float(np.sum(excess[m]) / np.sum(floor_sq[m]))})
     # harmonics of the test frequency: mean-square of the residual's periodic components
-    n_all = sum(len(r) for r in residuals)
     for label, ks in (("1st harmonic of the test frequency", (1,)), ("2nd-3rd harmonics", (2, 3)),
                       ("4th harmonic and above (to the cut-off)", (4, 5, 6, 7))):
         power = sum(len(r) * sum(_harmonic_power(t, r, k) for k in ks if k * t.frequency_hz < t.cutoff_hz * 1.01)

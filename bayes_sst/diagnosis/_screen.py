@@ -64,10 +64,12 @@ def fine_alpha(center: float, half_width: float = 0.1, step: float = 0.0125) -> 
 
 def fit_base(scorer: Scorer, terms: Sequence[Term] = (), alpha_start: float | None = None) -> ModelFit:
     """The model with `terms`, alpha profiled (coarse then fine grid)."""
+    coarse: list[ModelFit] = []
     if alpha_start is None:
-        coarse = scorer.profile_alpha(terms, ALPHA_COARSE)
-        alpha_start = coarse.alpha
-    fit = scorer.profile_alpha(terms, fine_alpha(alpha_start, 0.05))
+        coarse = scorer.alpha_fits(terms, ALPHA_COARSE)
+        alpha_start = max(coarse, key=lambda fit: fit.log_marginal).alpha
+    # the fine grid shares its centre and ends with the coarse grid: those fits are reused
+    fit = max(scorer.alpha_fits(terms, fine_alpha(alpha_start, 0.05), known=coarse), key=lambda fit: fit.log_marginal)
     # effect priors are scaled by the base model's population values
     scorer.base_scale.update(fit.base())
     return fit

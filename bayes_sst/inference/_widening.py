@@ -45,8 +45,12 @@ the model holds: the price of not trusting the model further than the tests agre
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # xarray is imported where it is used, to keep `import bayes_sst` light
+    import xarray as xr
 
 POPULATION = ("Me", "Ke", "Ce", "alpha", "Fmu")
 # fewer tests than this: leaving one out changes the plan too much to read an uncertainty from
@@ -121,7 +125,7 @@ def mode_jackknife(z: dict, table, priors, scales: dict, groups, max_iterations:
 
 
 def jackknife_modes(samples: dict, potential_energy, table, priors, scales: dict, coefficient_scale,
-                    test_ids) -> "xr.Dataset":
+                    test_ids) -> xr.Dataset:
     """The jackknife group of a run: the estimates of (Me, Ke, Ce, alpha, Fmu) in SI units from
     all tests (all_tests) and without each test or group of tests (without_test, dims
     left_out x quantity; each left_out label joins its tests' ids with '+'), at the
