@@ -19,40 +19,53 @@ capacity; the bristle state is advanced with its exact exponential solution (no 
 In clean series r <= 1.03.  Viscous damping is integrated implicitly (regularised below
 1e-5 m/s).
 
-Hydraulics: 4-way servo-valve with second-order spool (60-160 Hz, exact discretisation),
+Hydraulics: 4-way servo-valve with second-order spool (80-190 Hz, exact discretisation),
 spool saturation at +-1, small underlap (null leakage), turbulent orifice law against supply
 and return pressure (smoothly regularised at small pressure drop); two chambers of
 compressible oil (bulk modulus beta, volumes V0 +- A_p*u), cross-piston leakage, cavitation
 clamp; actuator seal friction (acts on the piston, so it is NOT in the measured force).
-The oil column resonance f_oil = sqrt(2*beta*A_p^2/(V0*M))/2pi is 15-40 Hz (M = Me+m_p).
+The oil column resonance f_oil = sqrt(2*beta*A_p^2/(V0*M))/2pi is 15-40 Hz (M = Me+m_p;
+lower where the stroke volume forces a larger V0).
 
 Controller: digital three-variable controller at 1-2.6 kHz with one-tick computation delay
 and zero-order hold: displacement, velocity (complementary filter of LVDT and accelerometer)
 and acceleration feedback, plus flow feed-forward of the reference velocity.  The gains are
 "commissioned" per table by an eigenvalue search on a linearised model of the true plant.
 References: sine or rounded (Lanczos-smoothed Fourier) triangle displacement with a
-sin^2 envelope ramp-in/out of 1-3 cycles, or one band-limited random record.
+sin^2 envelope ramp-in/out of 1-3 cycles (half a cycle below 0.15 Hz), or one band-limited random record.
 
 Force channel: load cell between rod and deck, so F = Me*a + deck forces; ``Me`` in the
 truth is the mass that force accelerates (deck + strut share; payload adds per test).
 
-Sensors: LVDT, accelerometer, load cell (AR(1)-coloured noise + 50 Hz / 150 Hz hum), and
-in some series a velocity transducer; white noise and per-test offsets are added before an
-identical Butterworth anti-alias filter on every channel, then decimation to fs (200, 500,
-1000 or 2048 Hz) and 16-bit quantisation.  Internal step: 10 kHz (10.24 kHz at 2048 Hz).
+Sensors: LVDT, accelerometer, load cell and (in some series) a velocity transducer.  Each
+has white electronic noise through a 1st-order conditioning low-pass (0.5-1.5 kHz; the
+controller samples these conditioned signals), a per-test offset, and the load cell in
+addition AR(1)-coloured noise and 50/150 Hz mains hum.  The DAQ passes every channel
+through the same Butterworth anti-alias filter (order 4-8, cut-off 0.28-0.4 fs), decimates
+to fs (200, 500, 1000 or 2048 Hz) and quantises to 16 bit.  Internal step 1e-4 s (10 kHz;
+10.24 kHz at fs = 2048 Hz).  Columns: t, u, F always; a in ~85 %, v in ~35 %, u_cmd in
+~50 % (a_cmd in some of those) of the series.
 
 Test-to-test scatter: Me, Ke, Ce, Fmu each times 1 + N(0, spread^2), spread in 0-3 %.
 
 Withheld effects (one per series, ``size`` in [0,1] picks within range, else random):
-  stiction            static_ratio 1.1-1.6, stribeck_velocity 2-20 mm/s (in the LuGre g(v))
-  channel_delay       delay 0.5-6 ms of the whole force channel before anti-aliasing
-  specimen            SDOF on the deck: mass 1-5 t, 5-25 Hz, 2-5 % damping; its weight
-                      also loads the friction (truth reports Fmu_with_specimen)
-  nonlinear_stiffness K3 = 0.3-15 Ke, spring Ke*u + K3*(u/h)^2*u
-  position_friction   Fp*(u/h)^2 added to the sliding capacity, 3-40 % of Fmu at max stroke
-  drift               Fmu and Ce fall by 5-25 % from first to last test (concave warm-up)
+  stiction            static_ratio 1.1-1.6 and stribeck_velocity 2-20 mm/s (both grow
+                      with size) in the LuGre capacity g(v)
+  channel_delay       delay 0.5-6 ms (log) of the whole force channel before anti-aliasing
+  specimen            SDOF on the deck: mass 1-5 t (grows), 25-5 Hz and 5-2 % damping (fall
+                      with size, jittered); its weight also loads the friction (truth
+                      reports Fmu_with_specimen; "Fmu" stays the empty table's)
+  nonlinear_stiffness K3 = 0.3-15 Ke (log), spring Ke*u + K3*(u/h)^2*u (l0_implied given)
+  position_friction   Fp*(u/h)^2 added to the sliding capacity, 3-40 % (log) of Fmu at the
+                      largest commanded amplitude of the plan
+  drift               Fmu and Ce fall by 5-25 % from first to last test (concave warm-up
+                      curve over campaign order); truth Ce and Fmu are the first test's
+The same seed gives the same table, plan and noise with or without an effect.
 
 The manifest's l0/gamma are nominal strut data; in clean series the truth spring is linear.
+oil_volume_m3 is the volume of ONE chamber at mid-stroke (incl. hoses), as used in f_oil.
+Known simplifications: rigid rod/load cell, one lumped strut stiffness, constant bulk
+modulus and oil temperature (except drift), no servo-valve hysteresis or supply dynamics.
 
 Usage: python benchmarks/seventh_generator.py --seed N --out DIR [--effect NAME] [--size X]
        python benchmarks/seventh_generator.py --selfcheck DIR
@@ -226,7 +239,6 @@ class _Reference:
         band = 1 / (1 + (0.3 / np.maximum(fr, 1e-9)) ** 4) / (1 + (fr / test["f_hi"]) ** 6)
         X = band * (rng.standard_normal(fr.size) + 1j * rng.standard_normal(fr.size))
         X[0] = 0
-        w = 2j * math.pi * fr
         u = np.fft.irfft(X, N)
         tt = np.arange(N) * dt
         e = np.clip(np.minimum(tt, Tb - tt) / Tr, 0, 1)
@@ -551,9 +563,11 @@ def _draw_effect(name, size, rng, T, H, tests):
         e["delay"] = _lerp(0.5e-3, 6e-3, s, log=True)
         sim = {"delay": e["delay"]}
     elif name == "specimen":
+        # small and stiff is the weak end, heavy and soft (close to the test band) strong
         e["specimen_mass"] = _lerp(1000.0, 5000.0, s)
-        e["specimen_frequency"] = float(rng.uniform(5, 25))
-        e["specimen_damping"] = float(rng.uniform(0.02, 0.05))
+        e["specimen_frequency"] = _lerp(25.0, 5.0, float(np.clip(s + rng.uniform(-0.15, 0.15),
+                                                                 0, 1)), log=True)
+        e["specimen_damping"] = _lerp(0.05, 0.02, float(np.clip(s + rng.uniform(-0.2, 0.2), 0, 1)))
         wn = 2 * math.pi * e["specimen_frequency"]
         sim = {"specimen_mass": e["specimen_mass"], "ms": e["specimen_mass"],
                "ks": e["specimen_mass"] * wn ** 2,
@@ -732,16 +746,18 @@ def _base_residual_clean(r):
 
 def _base_fit_rms(r, per_test=False):
     """Least-squares fit of the base law to the RECORDED force (true v used, alpha on a
-    grid); payload mass and its friction share enter as known regressors.  Returns the
-    residual RMS in N (pooled over the series, or per test if asked) on the samples away
+    grid); pooled: one parameter set, payload mass and its friction share as known
+    regressors; per_test: Me, Ke, Ce, Fmu free in every test.  Returns the residual RMS
+    in N on the samples away
     from reversals (|v| > 10 % of the test's peak, > 5 pre-sliding lengths travelled)."""
     rows, F, tid, keep = [], [], [], []
     zp = r["truth"]["friction_model"]["z_pre"]
     for j, (d, cl, m) in enumerate(zip(r["recorded"], r["clean"], r["manifest"]["tests"])):
-        ac = d["a"] if "a" in r["truth"]["columns"] else cl["a"]
+        # all regressors through the same sensor path (anti-alias filter) as the force
+        ac, vr = d["a"], d["v"]
         pay = m["payload_kg"]
-        sg = np.sign(cl["v"])
-        rows.append((ac, d["u"], np.abs(cl["v"]), sg, pay * G * sg))
+        sg = np.sign(vr)
+        rows.append((ac, d["u"], np.abs(vr), sg, pay * G * sg))
         F.append(d["F"] - pay * ac)
         tid.append(np.full(len(ac), j))
         keep.append((np.abs(cl["v"]) > 0.1 * np.abs(cl["v"]).max())
@@ -752,48 +768,57 @@ def _base_fit_rms(r, per_test=False):
     best = None
     for al in np.linspace(0.3, 1.0, 15):
         X = np.column_stack([cols[0], cols[1], cols[2] ** al * cols[3], cols[3], cols[4]])
-        coef, *_ = np.linalg.lstsq(X, F, rcond=None)
-        res = F - X @ coef
+        if per_test:       # separate Me, Ke, Ce, Fmu for every test, common alpha
+            res = np.empty_like(F)
+            for j in range(tid.max() + 1):
+                m = tid == j
+                coef, *_ = np.linalg.lstsq(X[m, :4], F[m], rcond=None)
+                res[m] = F[m] - X[m, :4] @ coef
+        else:
+            coef, *_ = np.linalg.lstsq(X, F, rcond=None)
+            res = F - X @ coef
         rr = float(np.sqrt(np.mean(res ** 2)))
-        if best is None or rr < best[0]:
-            best = (rr, res)
-    if per_test:
-        return [float(np.sqrt(np.mean(best[1][tid == j] ** 2))) for j in range(tid.max() + 1)]
-    return best[0]
+        if best is None or rr < best:
+            best = rr
+    return best
 
 
-def _selfcheck(root):
+def _selfcheck(root, effects=EFFECTS, clean_seeds=(0, 1, 2)):
     os.makedirs(root, exist_ok=True)
     lines = []
-    for seed in (0, 1, 2):
+
+    def say(x):
+        lines.append(x)
+        print(x, flush=True)
+
+    for seed in clean_seeds:
         t0 = time.time()
         r = make_series(seed, os.path.join(root, f"clean_{seed}"), None, None,
                         os.path.join(root, f"clean_{seed}_truth.json"), _return_clean=True)
         dt = time.time() - t0
         a, b, frac = _base_residual_clean(r)
         tr = r["truth"]
-        lines.append(f"clean seed {seed}: {dt:.1f}s fs={tr['fs']} n={tr['n_tests']} "
-                     f"Me={tr['Me']:.0f} Ke={tr['Ke']:.3g} Ce={tr['Ce']:.3g} a={tr['alpha']:.2f} "
-                     f"Fmu={tr['Fmu']:.0f} f_oil={tr['f_oil']:.1f} | resid/Fmu moving={a:.3f} "
-                     f"away={b:.4f} ({100 * frac:.0f} % of moving samples) | "
-                     f"fitRMS={_base_fit_rms(r):.0f} N")
-        print(lines[-1], flush=True)
-    for i, eff in enumerate(EFFECTS):
-        seed = 10 + i
+        say(f"clean seed {seed}: {dt:.1f}s fs={tr['fs']} n={tr['n_tests']} "
+            f"Me={tr['Me']:.0f} Ke={tr['Ke']:.3g} Ce={tr['Ce']:.3g} alpha={tr['alpha']:.2f} "
+            f"Fmu={tr['Fmu']:.0f} f_oil={tr['f_oil']:.1f} | true-law resid/Fmu moving={a:.3f} "
+            f"away={b:.4f} ({100 * frac:.0f} % of moving) | fit RMS pooled "
+            f"{_base_fit_rms(r):.0f} N, per-test {_base_fit_rms(r, True):.0f} N")
+    for i, eff in enumerate(effects):
+        seed = 10 + EFFECTS.index(eff)
         base = make_series(seed, os.path.join(root, f"base_{seed}"), None, _return_clean=True)
-        rb = _base_fit_rms(base)
+        rb = (_base_fit_rms(base), _base_fit_rms(base, True))
         for sz in (0.0, 1.0):
             t0 = time.time()
             tag = f"{eff}_{'weak' if sz == 0 else 'strong'}"
             r = make_series(seed, os.path.join(root, tag), eff, sz,
                             os.path.join(root, tag + "_truth.json"), _return_clean=True)
             dt = time.time() - t0
-            re = _base_fit_rms(r)
+            re = (_base_fit_rms(r), _base_fit_rms(r, True))
             e = {k: (round(v, 5) if isinstance(v, float) else v)
-                 for k, v in r["truth"]["effect"].items()}
-            lines.append(f"{tag}: {dt:.1f}s base-fit RMS {rb:.0f} -> {re:.0f} N "
-                         f"(+{100 * (re / rb - 1):.1f} %) {e}")
-            print(lines[-1], flush=True)
+                 for k, v in r["truth"]["effect"].items() if k != "name"}
+            say(f"{tag}: {dt:.1f}s fit RMS pooled {rb[0]:.0f}->{re[0]:.0f} N "
+                f"(+{100 * (re[0] / rb[0] - 1):.1f} %), per-test {rb[1]:.0f}->{re[1]:.0f} N "
+                f"(+{100 * (re[1] / rb[1] - 1):.1f} %) {e}")
     return lines
 
 
@@ -805,9 +830,12 @@ def main():
     ap.add_argument("--size", type=float, default=None)
     ap.add_argument("--truth", default=None)
     ap.add_argument("--selfcheck", default=None, metavar="DIR")
+    ap.add_argument("--check-effects", default=",".join(EFFECTS))
+    ap.add_argument("--check-clean", default="0,1,2")
     a = ap.parse_args()
     if a.selfcheck:
-        _selfcheck(a.selfcheck)
+        _selfcheck(a.selfcheck, [e for e in a.check_effects.split(",") if e],
+                   [int(x) for x in a.check_clean.split(",") if x])
         return
     if a.out is None:
         ap.error("--out is required")

@@ -1937,3 +1937,27 @@ def test_the_breakaway_null_holds_the_velocity_noise_through_a_low_exponent_damp
     without_share = np.array([x["d"] - x["null"] + x["window"]["damping_share"] for x in resting])
     assert abs(corrected.mean()) < 0.15
     assert without_share.mean() > 0.6
+
+
+def test_the_selected_effects_are_listed_strongest_first_whichever_view_chose_them():
+    """The side views' findings are given to the default view, whose own selections follow: the
+    list is ordered by the best score each had in a round that chose it, not by view."""
+    from bayes_sst.diagnosis._diagnose import _by_evidence
+
+    def step(chosen, scores, view=None):
+        entry = {"candidates": [{"name": n, "score": s} for n, s in scores.items()]}
+        if chosen is not None:
+            entry["chosen"] = chosen
+        if view:
+            entry["view"] = view
+        return entry
+
+    steps = [step("strut_damping", {"channel_delay": 31.8, "strut_damping": 16.2}),
+             step(None, {"drift": 5.4}),
+             step("nonlinear_stiffness", {"nonlinear_stiffness": 162.7, "strut_inertia": 0.0}, "stroke"),
+             # a second screening that chooses it again with a lower score keeps its best
+             step("nonlinear_stiffness", {"nonlinear_stiffness": 150.0}, "stroke_check")]
+    assert _by_evidence(["strut_damping", "nonlinear_stiffness"], steps) == ["nonlinear_stiffness", "strut_damping"]
+    # ties and names no round chose keep their order, the unchosen last
+    assert _by_evidence(["stiction", "strut_damping"], steps) == ["strut_damping", "stiction"]
+    assert _by_evidence(["a", "b"], []) == ["a", "b"]
