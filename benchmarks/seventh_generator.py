@@ -203,7 +203,7 @@ def _draw_plan(rng, T, H, payload, fs):
             Amax = min(0.12, 0.95 * V_LIM / w, 0.9 * A_LIM / w ** 2)
         else:
             Amax = min(0.12, 0.9 * V_LIM / (4 * f), 0.8 * A_LIM * math.pi ** 2 / 8 / w ** 2)
-        A = math.exp(rng.uniform(math.log(1e-3), math.log(max(Amax, 1.2e-3))))
+        A = math.exp(rng.uniform(math.log(max(1e-3, Amax / 40)), math.log(max(Amax, 1.2e-3))))
         for _ in range(40):
             vp, ap, F = _peak_demand(kind, A, f, T, H, Mtot, Fmu_t)
             if F < 0.8 * H["F_cap"] and vp < min(V_LIM, 0.8 * H["v_cap"]) and ap < A_LIM:
@@ -416,7 +416,7 @@ def _simulate(T, H, tests, refs, eff, S, ctrl, tp, rng):
     # sensor set-up
     sos = signal.butter(S["aa_order"], S["aa_fc"], fs=fi, output="sos")
     chans = ["u", "a", "F", "v"]
-    zi = {c: None for c in chans}
+    zi = {c: None for c in chans + ["vt"]}
     # transducer electronics: white noise through a 1st-order conditioning low-pass at
     # f_cond; sig_* are the RMS at the conditioner output (what the controller sees)
     p_c = math.exp(-2 * math.pi * S["f_cond"] / fi)
@@ -435,7 +435,7 @@ def _simulate(T, H, tests, refs, eff, S, ctrl, tp, rng):
     dlen = int(math.ceil(dsteps)) + 2
     F_hist = np.zeros((dlen, n))
     um_prev = off["u"].copy()
-    out = {c: [] for c in chans}
+    out = {c: [] for c in chans + ["vt"]}
     clean = {c: [] for c in ("u", "v", "a", "F", "Ffr", "Fx")}
     buf = {c: np.zeros((chunk, n)) for c in ("u", "v", "a", "F", "Ffr", "Fx")}
 
@@ -523,8 +523,8 @@ def _simulate(T, H, tests, refs, eff, S, ctrl, tp, rng):
                + S["hum150"] * np.sin(6 * math.pi * S["f_mains"] * tch[:, None] + hum_ph[1]))
         raw = {"u": bu + m_u, "a": ba + m_a,
                "F": Fsig + lc + hum + off["F"] + cond_noise("F"),
-               "v": bv + off["v"] + cond_noise("v")}
-        for c in chans:
+               "v": bv + off["v"] + cond_noise("v"), "vt": bv}
+        for c in chans + ["vt"]:
             x = raw[c]
             if zi[c] is None:
                 zi[c] = signal.sosfilt_zi(sos)[:, :, None] * x[0][None, None, :]
@@ -547,6 +547,7 @@ def _simulate(T, H, tests, refs, eff, S, ctrl, tp, rng):
         ucmd, _, acmd = refs[j](d["t"])
         d["u_cmd"], d["a_cmd"] = ucmd, acmd
         cl = {c: clean[c][:m, j] for c in clean}
+        cl["v_aa"] = out["vt"][:m, j]          # noise-free v through the DAQ filter
         res.append((d, cl))
     return res
 
@@ -753,8 +754,8 @@ def _base_fit_rms(r, per_test=False):
     rows, F, tid, keep = [], [], [], []
     zp = r["truth"]["friction_model"]["z_pre"]
     for j, (d, cl, m) in enumerate(zip(r["recorded"], r["clean"], r["manifest"]["tests"])):
-        # all regressors through the same sensor path (anti-alias filter) as the force
-        ac, vr = d["a"], d["v"]
+        # all regressors through the same anti-alias filter as the force
+        ac, vr = d["a"], cl["v_aa"]
         pay = m["payload_kg"]
         sg = np.sign(vr)
         rows.append((ac, d["u"], np.abs(vr), sg, pay * G * sg))

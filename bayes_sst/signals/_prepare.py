@@ -83,6 +83,8 @@ from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_c
 from bayes_sst.signals._filters import (lowpass_power_gain, second_derivative, time_derivative,
                                        velocity_with_acceleration_above, zero_phase_lowpass)
 from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
+from bayes_sst.signals._presliding import (PRESLIDING_TRAVELS, presliding_profile, presliding_weight,
+                                           travel_since_reversal)
 
 MIN_STEADY_CYCLES = 3
 # a test with fewer likelihood samples than this is named in the notes: its four coefficients
@@ -141,6 +143,10 @@ class SignalOptions:
     stagger_phases : let the decimation grid slip by one step over the steady window, so that
         the cycles of a test whose period is a whole number of steps are sampled at new phases
         (kept_indices; off by default, it says why).
+    presliding : the friction's pre-sliding distance delta (m): samples within
+        PRESLIDING_TRAVELS*delta of travel after a reversal are left out like the reversal band's
+        (signals._presliding); None reads delta from the series (prepare_series), 0 leaves
+        nothing out for it.
     """
 
     cutoff_multiple: float = 4.0
@@ -165,6 +171,7 @@ class SignalOptions:
     check_accelerometer: bool = True
     stagger_phases: bool = False
     noise_difference_order: int = 4
+    presliding: float | None = None
 
     def band_for(self, measured_acceleration: bool) -> "SignalOptions":
         """These options with the reversal band that applies to a test with or without a
@@ -737,6 +744,11 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
                          f"speed {1e3 * peak_speed:.3g} mm/s; the reversal band leaves out those under "
                          f"{1e3 * band_edge:.3g} mm/s): its own coefficients rest mostly on the other tests",)
     weight = reversal_weight(v_f, peak_speed, options)
+    if options.presliding:
+        amplitude = 0.5 * float(np.ptp(u_f[window.start : window.stop]))
+        turning, turn_travel = presliding_weight(v_f, fs, options.presliding, amplitude)
+        weight = weight * turning
+        keep = keep & (travel_since_reversal(v_f, fs)[index] >= turn_travel)
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
     noise_excess = None
@@ -810,8 +822,28 @@ def _drift_of_accelerometer(record, a_low, u_f, v_f, window, cutoff, white_sd, d
     )
 
 
+# the tests the pre-sliding profile reads at most (prepare_series)
+PROFILE_TESTS = 40
+
+
 def prepare_series(series: Series, options: SignalOptions = SignalOptions()) -> list[PreparedTest]:
-    """Prepare every periodic test of a series; broadband tests are not for the force fit."""
+    """Prepare every periodic test of a series; broadband tests are not for the force fit.
+
+    With options.presliding None the friction's pre-sliding distance is read from the tests
+    prepared without it (signals._presliding.presliding_profile, on at most PROFILE_TESTS of
+    them); where one is found the tests are prepared again leaving its turn out, with a note."""
+    if options.presliding is None:
+        prepared = prepare_series(series, replace(options, presliding=0.0))
+        chosen = prepared[:: max(1, int(np.ceil(len(prepared) / PROFILE_TESTS)))]
+        profile = presliding_profile(chosen)
+        if profile.presliding_m <= 0.0:
+            return prepared
+        prepared = prepare_series(series, replace(options, presliding=profile.presliding_m))
+        note = (f"pre-sliding friction: the friction turns over about {profile.presliding_m * 1e6:.0f} um of travel "
+                f"after each reversal (Dahl's law fits {max(profile.travel_gain):.0f} nats better than sign(v) over "
+                f"{len(chosen)} tests), so the samples within {PRESLIDING_TRAVELS * profile.presliding_m * 1e6:.0f} um "
+                "after a reversal are left out as well; with sign(v) there Fmu and Me read low")
+        return [replace(test, notes=test.notes + ((note,) if k == 0 else ())) for k, test in enumerate(prepared)]
     prepared = []
     for record in series.periodic_tests:
         source = str(series.path / record.spec.file) if series.path else record.spec.file
