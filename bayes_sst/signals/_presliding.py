@@ -55,7 +55,7 @@ PRESLIDING_RIVAL_NATS = 10.0
 
 
 def dahl_shape(velocity: np.ndarray, sample_rate_hz: float, presliding_m: float) -> np.ndarray:
-    """s = F/Fmu of Dahl's law driven by the velocity record (last axis time):
+    """s = F/Fmu of Dahl's law driven by a velocity record (1-D, in time):
 
         s_(n+1) = d_n + (s_n - d_n)*exp(-|dx_n|/delta),   dx_n = v_n/fs,   d_n = sign(dx_n),
 
@@ -67,9 +67,6 @@ def dahl_shape(velocity: np.ndarray, sample_rate_hz: float, presliding_m: float)
     velocity = np.asarray(velocity, dtype=float)
     if presliding_m <= 0.0:
         return np.sign(velocity)
-    if velocity.ndim > 1:
-        rows = velocity.reshape(-1, velocity.shape[-1])
-        return np.stack([dahl_shape(row, sample_rate_hz, presliding_m) for row in rows]).reshape(velocity.shape)
     if velocity.size == 0:
         return np.zeros(0)
     held, new_run, run = _runs(velocity)
@@ -102,11 +99,6 @@ class PreslidingProfile(NamedTuple):
     travel_gain: tuple[float, ...]
     time_gain: tuple[float, ...]
     presliding_m: float
-
-    def to_json(self) -> dict:
-        return {"presliding_m": self.presliding_m,
-                "travel_m": list(PRESLIDING_GRID_M), "travel_gain_nats": list(self.travel_gain),
-                "time_s": list(TURNOVER_GRID_S), "time_gain_nats": list(self.time_gain)}
 
 
 def _test_log_likelihoods(test, shapes: Sequence) -> np.ndarray:
