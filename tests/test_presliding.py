@@ -48,11 +48,11 @@ def test_the_travel_since_a_reversal_and_the_weight_that_leaves_the_turn_out():
     # rectangle rule's error, half a step's travel)
     k = int(0.5 * fs)
     assert travel[k] == pytest.approx(amplitude, abs=amplitude * 2 * np.pi * f / fs)
-    weight, x0 = presliding_weight(velocity, fs, 1e-4, amplitude)
+    weight, x0 = presliding_weight(travel, 1e-4, amplitude)
     assert x0 == pytest.approx(PRESLIDING_TRAVELS * 1e-4)
     assert np.all(weight[travel < x0] == 0.0) and np.all(weight[travel >= 1.5 * x0] == 1.0)
     # at most the amplitude is left out, so every stroke keeps its second half
-    _, x0 = presliding_weight(velocity, fs, 1e-3, amplitude)
+    _, x0 = presliding_weight(travel, 1e-3, amplitude)
     assert x0 == amplitude
 
 

@@ -206,7 +206,7 @@ class Scorer:
 
     def profile_alpha(self, terms: Sequence[Term], grid: Sequence[float]) -> ModelFit:
         """The model at the alpha of `grid` with the highest marginal likelihood."""
-        return max(self.alpha_fits(terms, grid), key=lambda fit: fit.log_marginal)
+        return most_probable(self.alpha_fits(terms, grid))
 
     def alpha_fits(self, terms: Sequence[Term], grid: Sequence[float],
                    known: Sequence[ModelFit] = ()) -> list[ModelFit]:
@@ -214,6 +214,11 @@ class Scorer:
         at their alphas (a fine grid around a coarse one's best shares its nodes)."""
         made = {round(fit.alpha, 6): fit for fit in known}
         return [made.get(round(float(alpha), 6)) or self.fit(terms, float(alpha)) for alpha in grid]
+
+
+def most_probable(fits: Sequence[ModelFit]) -> ModelFit:
+    """The fit of highest log marginal likelihood (the first of equals)."""
+    return max(fits, key=lambda fit: fit.log_marginal)
 
 
 def _noise_moments(payload: float, columns: Mapping[int, np.ndarray], p: int, phi: float,

@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from bayes_sst.diagnosis._engine import ModelFit, Scorer, Term
+from bayes_sst.diagnosis._engine import ModelFit, Scorer, Term, most_probable
 from bayes_sst.effects import AmplitudeFree, Effect
 
 ALPHA_COARSE = tuple(np.round(np.arange(0.2, 1.2001, 0.05), 4))
@@ -67,9 +67,9 @@ def fit_base(scorer: Scorer, terms: Sequence[Term] = (), alpha_start: float | No
     coarse: list[ModelFit] = []
     if alpha_start is None:
         coarse = scorer.alpha_fits(terms, ALPHA_COARSE)
-        alpha_start = max(coarse, key=lambda fit: fit.log_marginal).alpha
+        alpha_start = most_probable(coarse).alpha
     # the fine grid shares its centre and ends with the coarse grid: those fits are reused
-    fit = max(scorer.alpha_fits(terms, fine_alpha(alpha_start, 0.05), known=coarse), key=lambda fit: fit.log_marginal)
+    fit = most_probable(scorer.alpha_fits(terms, fine_alpha(alpha_start, 0.05), known=coarse))
     # effect priors are scaled by the base model's population values
     scorer.base_scale.update(fit.base())
     return fit
@@ -273,10 +273,10 @@ def score_effect(scorer: Scorer, effect: Effect, current: ModelFit, *, wide_sear
             break
     # a wide window: an unmodelled effect can bias alpha by 0.1 (a 3 ms delay moved it 0.6 -> 0.5)
     coarse_fits = scorer.alpha_fits(terms + [(effect, best_setting)], fine_alpha(current.alpha, 0.15, 0.025))
-    coarse = max(coarse_fits, key=lambda f: f.log_marginal)
+    coarse = most_probable(coarse_fits)
     fine_fits = scorer.alpha_fits(terms + [(effect, best_setting)], fine_alpha(coarse.alpha, 0.025, 0.0125),
                                   known=coarse_fits)
-    fit = max(fine_fits, key=lambda f: f.log_marginal)
+    fit = most_probable(fine_fits)
     diff = fit.elpd - current.elpd
     score = float(diff.sum())
     se = float(np.sqrt(len(diff) * np.var(diff, ddof=1))) if len(diff) > 1 else float("inf")

@@ -746,9 +746,10 @@ def prepare_test(record: TestRecord, options: SignalOptions = SignalOptions(), *
     weight = reversal_weight(v_f, peak_speed, options)
     if options.presliding:
         amplitude = 0.5 * float(np.ptp(u_f[window.start : window.stop]))
-        turning, turn_travel = presliding_weight(v_f, fs, options.presliding, amplitude)
+        travel = travel_since_reversal(v_f, fs)
+        turning, turn_travel = presliding_weight(travel, options.presliding, amplitude)
         weight = weight * turning
-        keep = keep & (travel_since_reversal(v_f, fs)[index] >= turn_travel)
+        keep = keep & (travel[index] >= turn_travel)
     weighted = not np.all(weight == 1.0)
     noise_sd = 0.0
     noise_excess = None

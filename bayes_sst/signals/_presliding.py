@@ -159,11 +159,10 @@ def travel_since_reversal(velocity: np.ndarray, sample_rate_hz: float) -> np.nda
     return before - before[np.flatnonzero(new_run)][run]
 
 
-def presliding_weight(velocity: np.ndarray, sample_rate_hz: float, presliding_m: float, amplitude_m: float
-                      ) -> tuple[np.ndarray, float]:
-    """(w, x0): a weight 0 until the travel since the reversal reaches x0 = PRESLIDING_TRAVELS*delta
-    (at most the amplitude, so that every stroke keeps its second half), rising as a raised cosine
-    to 1 at 1.5*x0; and x0."""
+def presliding_weight(travel: np.ndarray, presliding_m: float, amplitude_m: float) -> tuple[np.ndarray, float]:
+    """(w, x0): a weight 0 until the travel since the reversal (travel_since_reversal) reaches
+    x0 = PRESLIDING_TRAVELS*delta (at most the amplitude, so that every stroke keeps its second
+    half), rising as a raised cosine to 1 at 1.5*x0; and x0."""
     x0 = min(PRESLIDING_TRAVELS * presliding_m, amplitude_m)
-    ramp = np.clip((travel_since_reversal(velocity, sample_rate_hz) - x0) / (0.5 * x0), 0.0, 1.0)
+    ramp = np.clip((travel - x0) / (0.5 * x0), 0.0, 1.0)
     return 0.5 - 0.5 * np.cos(np.pi * ramp), x0
