@@ -235,6 +235,12 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).noise_difference_order == 4
     older = {k: v for k, v in current.items() if k != "noise_difference_order"}
     assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).noise_difference_order == 2
+    # and runs from before the pre-sliding read and the kernel on the force had neither
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).kernel_on_force
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(current)})).presliding is None
+    older = {k: v for k, v in current.items() if k not in ("presliding", "kernel_on_force")}
+    options = run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)}))
+    assert options.presliding == 0.0 and options.kernel_on_force is False
 
 
 def _white_force_noise_series(seed: int = 1):

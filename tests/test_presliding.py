@@ -98,5 +98,34 @@ def test_prepare_series_leaves_the_turn_out_and_says_so():
     for k, test in enumerate(plain):
         ratio = read[k].n_kept / test.n_kept
         assert ratio < 0.92 if test.amplitude_m <= 0.0025 else ratio == 1.0, (test.id, ratio)
-    # a series with an instant flip is prepared as before
-    assert not any("pre-sliding" in note for note in prepare_series(_series(0.0))[0].notes)
+    # a series with an instant flip does not lean to a turn and is prepared as before, no note
+    flip = _series(0.0)
+    assert not presliding_profile(prepare_series(flip, SignalOptions(presliding=0.0))).leans_to_turn(40e-6)
+    default = prepare_series(flip)
+    assert not any("pre-sliding" in note for note in default[0].notes)
+    as_before = prepare_series(flip, SignalOptions(presliding=0.0))
+    assert all(np.array_equal(a.keep, b.keep) and np.array_equal(a.F, b.F) for a, b in zip(default, as_before))
+
+
+def test_a_turn_too_short_to_read_leaves_the_floors_travel_out():
+    """Dahl's law over 30 um: the profile peaks at 40 um (about 80 nats) but the time rival is
+    near, so no travel is read; the series leans to a turn (2 nats or more at a travel up to
+    the floor), and the floor's 40 um is left out, without a note. A turn read at 20 um is
+    left out over the floor's travel, with the note."""
+    short = _series(30e-6)
+    profile = presliding_profile(prepare_series(short, SignalOptions(presliding=0.0)))
+    assert profile.presliding_m == 0.0 and profile.leans_to_turn(40e-6) and not profile.leans_to_turn(10e-6)
+    floor = SignalOptions().presliding_floor
+    default = prepare_series(short)
+    explicit = prepare_series(short, SignalOptions(presliding=floor))
+    assert all(np.array_equal(a.keep, b.keep) and np.array_equal(a.F, b.F) for a, b in zip(default, explicit))
+    assert not any("pre-sliding" in note for note in default[0].notes)
+    # 4*40 um is 160 um: a 2 mm test loses the samples up to acos(1 - 0.08) = 23 degrees past a
+    # reversal, a 20 mm test none beyond its reversal band
+    plain = prepare_series(short, SignalOptions(presliding=0.0))
+    assert default[2].n_kept < plain[2].n_kept and default[0].n_kept == plain[0].n_kept
+    assert prepare_series(short, SignalOptions(presliding_floor=0.0))[2].n_kept == plain[2].n_kept
+    shorter = prepare_series(_series(20e-6))
+    assert presliding_profile(prepare_series(_series(20e-6), SignalOptions(presliding=0.0))).presliding_m == pytest.approx(20e-6)
+    assert any(note.startswith("pre-sliding friction: the friction turns over about 20 um") and "within 160 um" in note
+               for note in shorter[0].notes)

@@ -53,7 +53,7 @@ from bayes_sst.signals._noise import NOISE_DRAWS, mid_stroke_noise_sd
 # constant per test is not applied (docs/diagnosis.md says why).
 DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.1, reversal_band_without_accelerometer=None,
                                   reversal_speed=0.0, reversal_window=True, velocity_smoothing_s=0.0025, periodic_acceleration=True, free_constant=False,
-                                  noise_difference_order=2, presliding=0.0)
+                                  noise_difference_order=2, presliding=0.0, kernel_on_force=False)
 # The reversal view, for stiction, which lives at low speed: a 12f cut-off and the reversal
 # weight with a narrow band (2 % of the peak speed, then a ramp to 7 %). Why each part, on the
 # virtual table (static ratio 1.3-1.5, Stribeck velocity 10-20 mm/s) and clean series of both
@@ -82,7 +82,7 @@ DIAGNOSIS_SIGNALS = SignalOptions(cutoff_multiple=4.0, reversal_band=0.1, revers
 REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, reversal_band_without_accelerometer=None,
                                  reversal_taper=0.05,
                                  reversal_speed=0.0, reversal_window=True, velocity_smoothing_s=0.01, periodic_acceleration=False, free_constant=False,
-                                 velocity_with_accelerometer=True, noise_difference_order=2, presliding=0.0)
+                                 velocity_with_accelerometer=True, noise_difference_order=2, presliding=0.0, kernel_on_force=False)
 # The stroke view, for effects that grow with |u| (nonlinear_stiffness, position_friction,
 # strut_inertia): a wider band and no samples slower than 35 % of the peak speed. Under a sine
 # |u| is largest exactly where the table reverses and rests; with the 4f low-pass the rest
@@ -92,9 +92,12 @@ REVERSAL_SIGNALS = SignalOptions(cutoff_multiple=12.0, reversal_band=0.02, rever
 # fitted test-to-test spread went to 18 %; 8f keeps it at the true 2 %.)
 STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal_band_without_accelerometer=None,
                                reversal_speed=0.0, reversal_window=False, periodic_acceleration=False, free_constant=False,
-                               noise_difference_order=2, presliding=0.0)
+                               noise_difference_order=2, presliding=0.0, kernel_on_force=False)
 # The three views leave no pre-sliding turn out (presliding=0.0; the fit does since 2026-12-01,
-# signals._presliding): every gate and threshold of the diagnosis was set without it.
+# signals._presliding) and, without an accelerometer, filter the raw force against the kernel's
+# acceleration (kernel_on_force=False; the fit passes the force through the kernel since
+# 2026-12-01): every gate and threshold of the diagnosis was set without either, and its
+# EffectData builds the force and the candidate columns from the record itself.
 # The three views read the accelerometer's noise from second differences, as when every gate
 # and threshold of the diagnosis was set; the fit reads it from fourth differences since
 # 2026-11-30 (signals._noise.white_noise_sd), which would move the views' errors-in-variables

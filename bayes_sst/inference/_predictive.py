@@ -47,7 +47,10 @@ def run_signal_options(tree) -> SignalOptions:
     the accelerometer-drift estimate (no "coloured_accelerometer_noise"), its displacement
     covariate (no "drift_displacement_covariate") or each test's free constant (no
     "free_constant") was fitted without it; one from before the fourth-difference noise read (no
-    "noise_difference_order") read the accelerometer's noise from second differences.
+    "noise_difference_order") read the accelerometer's noise from second differences; one from
+    before the pre-sliding read (no "presliding") left no turn out, and one from before the
+    kernel on the force (no "kernel_on_force") filtered the raw force of a test without an
+    accelerometer.
     """
     text = tree.attrs.get("signal_options", "")
     if not text:
@@ -65,6 +68,8 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("drift_displacement_covariate", False)
     recorded.setdefault("free_constant", False)
     recorded.setdefault("noise_difference_order", 2)
+    recorded.setdefault("presliding", 0.0)
+    recorded.setdefault("kernel_on_force", False)
     return SignalOptions(**recorded)
 
 

@@ -52,6 +52,10 @@ TURNOVER_GRID_S = (0.002, 0.005, 0.01, 0.02, 0.04)
 # whose best travel lies in the accepted range gained at most 4 (sixth, seed 300: 6 at 60 um)
 PRESLIDING_GAIN_NATS = 20.0
 PRESLIDING_RIVAL_NATS = 10.0
+# a series leans to a turn where its best gain at travels up to a floor is at least this: too
+# weak to read the turn's length, enough to leave the floor's travel out (prepare_series,
+# SignalOptions.presliding_floor; docs/measurements.md, 2026-12-01)
+LEANING_GAIN_NATS = 2.0
 
 
 def dahl_shape(velocity: np.ndarray, sample_rate_hz: float, presliding_m: float) -> np.ndarray:
@@ -99,6 +103,12 @@ class PreslidingProfile(NamedTuple):
     travel_gain: tuple[float, ...]
     time_gain: tuple[float, ...]
     presliding_m: float
+
+    def leans_to_turn(self, up_to_m: float) -> bool:
+        """Whether Dahl's column gains at least LEANING_GAIN_NATS over sign(v) at some travel
+        of the grid no longer than up_to_m."""
+        gains = [g for x, g in zip(PRESLIDING_GRID_M, self.travel_gain) if x <= up_to_m * (1 + 1e-9)]
+        return bool(gains) and max(gains) >= LEANING_GAIN_NATS
 
 
 def _test_log_likelihoods(test, shapes: Sequence) -> np.ndarray:
