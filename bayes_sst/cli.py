@@ -66,6 +66,24 @@ def add_exclude_argument(parser) -> None:
                              "themselves")
 
 
+def fit_signal_options(args):
+    """The SignalOptions of `bayes-sst fit`'s arguments."""
+    from dataclasses import replace
+
+    from bayes_sst.signals import SignalOptions
+
+    options = SignalOptions(cutoff_multiple=args.cutoff_multiple)
+    if args.reversal_band is not None:  # the user's band holds for every test, accelerometer or not
+        options = replace(options, reversal_band=args.reversal_band, reversal_band_without_accelerometer=None)
+    if args.reversal_speed is not None:
+        options = replace(options, reversal_speed=args.reversal_speed)
+    if args.presliding is not None:
+        options = replace(options, presliding=args.presliding)
+    if args.presliding_floor is not None:
+        options = replace(options, presliding_floor=args.presliding_floor)
+    return options
+
+
 def _cmd_fit(args) -> int:
     from dataclasses import replace
 
@@ -73,17 +91,12 @@ def _cmd_fit(args) -> int:
     from bayes_sst.inference._priors import make_priors
     from bayes_sst.inference._summary import format_summary, summarize
     from bayes_sst.io import check_run_target, load_series, write_run
-    from bayes_sst.signals import SignalOptions
 
     check_run_target(args.out, overwrite=args.force)
     started = time.perf_counter()
     _progress(f"reading {args.series} ...")
     series = load_series(args.series, exclude=args.exclude_test)
-    options = SignalOptions(cutoff_multiple=args.cutoff_multiple)
-    if args.reversal_band is not None:  # the user's band holds for every test, accelerometer or not
-        options = replace(options, reversal_band=args.reversal_band, reversal_band_without_accelerometer=None)
-    if args.reversal_speed is not None:
-        options = replace(options, reversal_speed=args.reversal_speed)
+    options = fit_signal_options(args)
     priors = make_priors(args.prior, series.table, per_test_alpha=args.per_test_alpha)
     if args.shared:
         priors = replace(priors, shared=tuple(dict.fromkeys(args.shared)))
@@ -180,6 +193,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reversal-speed", type=non_negative_number, default=None, metavar="M_PER_S",
                    help="the band reaches at least this speed, up to half the peak speed (default 0.01 m/s: "
                         "friction exceeds its kinetic level below a few Stribeck velocities)")
+    p.add_argument("--presliding", type=non_negative_number, default=None, metavar="M",
+                   help="the friction's pre-sliding travel: the samples within 4 times it after each reversal "
+                        "are left out (default: read from the series; 0 leaves nothing out for it)")
+    p.add_argument("--presliding-floor", type=non_negative_number, default=None, metavar="M",
+                   help="with --presliding read from the series, the travel left out where the series leans to "
+                        "a turn too short to read (default 4e-05 m; 0: none)")
     add_exclude_argument(p)
     p.add_argument("--force", action="store_true", help="replace an existing run folder")
     p.set_defaults(handler=_cmd_fit)

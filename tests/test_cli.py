@@ -269,6 +269,8 @@ def test_a_damaged_posterior_file_is_named(tmp_path):
     (["fit", "S", "--out", "R", "--reversal-speed", "nan"], "'nan' is not a finite number"),
     (["fit", "S", "--out", "R", "--reversal-speed", "-1"], "-1 is negative"),
     (["fit", "S", "--out", "R", "--cutoff-multiple", "inf"], "'inf' is not a finite number"),
+    (["fit", "S", "--out", "R", "--presliding", "-0.0001"], "-0.0001 is negative"),
+    (["fit", "S", "--out", "R", "--presliding-floor", "nan"], "'nan' is not a finite number"),
     (["classical", "S", "--out", "R", "--alpha", "-1"], "-1 is not a damping exponent"),
     (["classical", "S", "--out", "R", "--alpha", "nan"], "'nan' is not a finite number"),
     (["report", "R", "--seed", "-2"], "-2 is negative"),
@@ -278,6 +280,19 @@ def test_bad_option_values_are_refused_with_the_rule(argv, words, capsys):
         main(argv)
     assert excinfo.value.code == 2
     assert words in capsys.readouterr().err
+
+
+def test_fit_passes_the_signal_options_it_is_given():
+    from bayes_sst.cli import build_parser, fit_signal_options
+    from bayes_sst.signals import SignalOptions
+
+    parse = build_parser().parse_args
+    assert fit_signal_options(parse(["fit", "S", "--out", "R"])) == SignalOptions()
+    options = fit_signal_options(parse(["fit", "S", "--out", "R", "--presliding", "8e-5", "--presliding-floor", "0",
+                                        "--reversal-band", "0.15", "--cutoff-multiple", "6"]))
+    assert (options.presliding, options.presliding_floor, options.cutoff_multiple) == (8e-5, 0.0, 6.0)
+    assert options.reversal_band == 0.15 and options.reversal_band_without_accelerometer is None
+    assert fit_signal_options(parse(["fit", "S", "--out", "R", "--presliding", "0"])).presliding == 0.0
 
 
 def test_report_figure_names_are_distinct_and_short():
