@@ -47,13 +47,14 @@ def _analysable(folder: str):
     """The series, less the tests whose steady cycles the analysis cannot find (each named by
     the SeriesFormatError that refuses it), and the ids left out."""
     from bayes_sst.io import SeriesFormatError, load_series
-    from bayes_sst.signals import prepare_series
+    from bayes_sst.signals import SignalOptions, prepare_series
 
     excluded: list[str] = []
     while True:
         series = load_series(folder, exclude=excluded)
         try:
-            prepare_series(series)
+            # the steady cycles do not depend on the pre-sliding turn: no profile here
+            prepare_series(series, SignalOptions(presliding=0.0))
             return series, excluded
         except SeriesFormatError as error:
             if not error.where.startswith("test '") or len(excluded) >= 3:

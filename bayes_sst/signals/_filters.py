@@ -66,6 +66,12 @@ def zero_phase_lowpass(x, cutoff_hz: float, sample_rate_hz: float, *, axis: int 
     return np.moveaxis(backward[..., ::-1][..., edge:-edge], -1, axis)
 
 
+def raised_cosine_step(x) -> np.ndarray:
+    """(1 - cos(pi*x))/2 with x clipped to [0, 1]: 0 up to x = 0, 1 from x = 1, a smooth rise
+    between (the ramp of the reversal and pre-sliding weights)."""
+    return 0.5 - 0.5 * np.cos(np.pi * np.clip(x, 0.0, 1.0))
+
+
 def time_derivative(x, sample_rate_hz: float, *, axis: int = -1):
     """dx/dt by second-order central differences (one-sided at the ends)."""
     return np.gradient(np.asarray(x, dtype=float), 1.0 / sample_rate_hz, axis=axis)

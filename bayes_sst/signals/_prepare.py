@@ -98,7 +98,7 @@ from bayes_sst.io._series import sample_rate_of
 from bayes_sst.physics import friction_load_ratio, hold_down_force
 from bayes_sst.signals._checks import accelerometer_disagreement
 from bayes_sst.signals._cycles import CycleWindow, fundamental_phase, periodic_component, steady_cycles
-from bayes_sst.signals._filters import (lowpass_power_gain, second_derivative, time_derivative,
+from bayes_sst.signals._filters import (lowpass_power_gain, raised_cosine_step, second_derivative, time_derivative,
                                        velocity_with_acceleration_above, zero_phase_lowpass)
 from bayes_sst.signals._noise import NoiseSpectrum, coloured_noise_excess, mid_stroke_noise_sd
 from bayes_sst.signals._presliding import (PRESLIDING_TRAVELS, presliding_profile, presliding_weight,
@@ -414,9 +414,8 @@ def reversal_weight(velocity: np.ndarray, peak_speed: float, options: "SignalOpt
     """
     if not options.reversal_window or options.reversal_band <= 0.0 or peak_speed <= 0.0:
         return np.ones_like(velocity, dtype=float)
-    ramp = (np.abs(velocity) / peak_speed - reversal_band_share(peak_speed, options)) / max(options.reversal_taper, 1e-9)
-    ramp = np.clip(ramp, 0.0, 1.0)
-    return 0.5 - 0.5 * np.cos(np.pi * ramp)
+    share_above_band = np.abs(velocity) / peak_speed - reversal_band_share(peak_speed, options)
+    return raised_cosine_step(share_above_band / max(options.reversal_taper, 1e-9))
 
 
 # the synchronous average needs the motion's period to match the test frequency: over the

@@ -39,6 +39,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from bayes_sst.signals._filters import raised_cosine_step
+
 # the travels (m) and times (s) the profile reads
 PRESLIDING_GRID_M = (10e-6, 20e-6, 40e-6, 80e-6, 160e-6, 320e-6, 640e-6)
 # the longest travel taken: the grid goes on beyond it to see whether the gain keeps rising
@@ -174,5 +176,4 @@ def presliding_weight(travel: np.ndarray, presliding_m: float, amplitude_m: floa
     x0 = PRESLIDING_TRAVELS*delta (at most the amplitude, so that every stroke keeps its second
     half), rising as a raised cosine to 1 at 1.5*x0; and x0."""
     x0 = min(PRESLIDING_TRAVELS * presliding_m, amplitude_m)
-    ramp = np.clip((travel - x0) / (0.5 * x0), 0.0, 1.0)
-    return 0.5 - 0.5 * np.cos(np.pi * ramp), x0
+    return raised_cosine_step((travel - x0) / (0.5 * x0)), x0
