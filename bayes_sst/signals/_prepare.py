@@ -60,7 +60,7 @@ Treatment, for each periodic test of fundamental f sampled at fs:
    1.01 %, alpha 0.017 to 0.010, Fmu 4.66 to 2.61 %, coverage Me 20 -> 20, Ke 23 -> 20, Ce 22
    -> 23, alpha 22 -> 22, Fmu 20 -> 21, converged 19 -> 23; the 24th (the sixth's seed 7
    without a) slides along the Me-Ke ridge to Me -30 %, flagged as not converged, where it had
-   read -1.5 %, also not converged (docs/measurements.md).
+   read -1.9 %, also not converged (docs/measurements.md).
 4. Steady state. Only the longest run of whole cycles whose amplitude sits on the plateau
    enters; ramp-in and ramp-out cycles are trimmed. The means of F, u, a (and a measured v)
    over those cycles are subtracted first (without_steady_offsets): sensor zero offsets. What
