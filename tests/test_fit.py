@@ -241,6 +241,9 @@ def test_runs_fitted_before_the_reversal_weight_are_re_prepared_without_it():
     older = {k: v for k, v in current.items() if k not in ("presliding", "kernel_on_force")}
     options = run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)}))
     assert options.presliding == 0.0 and options.kernel_on_force is False
+    # a run from the day's first pre-sliding read had no floor
+    older = {k: v for k, v in current.items() if k != "presliding_floor"}
+    assert run_signal_options(SimpleNamespace(attrs={"signal_options": json.dumps(older)})).presliding_floor == 0.0
 
 
 def _white_force_noise_series(seed: int = 1):

@@ -48,7 +48,8 @@ def run_signal_options(tree) -> SignalOptions:
     covariate (no "drift_displacement_covariate") or each test's free constant (no
     "free_constant") was fitted without it; one from before the fourth-difference noise read (no
     "noise_difference_order") read the accelerometer's noise from second differences; one from
-    before the pre-sliding read (no "presliding") left no turn out, and one from before the
+    before the pre-sliding read (no "presliding") or its floor (no "presliding_floor") left no
+    such turn out, and one from before the
     kernel on the force (no "kernel_on_force") filtered the raw force of a test without an
     accelerometer.
     """
@@ -69,6 +70,7 @@ def run_signal_options(tree) -> SignalOptions:
     recorded.setdefault("free_constant", False)
     recorded.setdefault("noise_difference_order", 2)
     recorded.setdefault("presliding", 0.0)
+    recorded.setdefault("presliding_floor", 0.0)
     recorded.setdefault("kernel_on_force", False)
     return SignalOptions(**recorded)
 
