@@ -136,3 +136,24 @@ def test_every_force_effect_gives_columns_of_the_kept_length(clean):
         assert np.all(np.isfinite(cols))
         response = effect.response(tests[0], setting)
         assert response is None or response.shape == (len(tests[0].index),)
+
+
+def test_stiction_under_its_least_excess_is_no_finding():
+    """Stiction.immaterial: a static excess under LEAST_STATIC_EXCESS is the few-percent
+    Stribeck curve every contact has; at the grid's lower Stribeck velocity (not resolved) the
+    breakaway check's excess is asked instead."""
+    from bayes_sst.effects._library import LEAST_STATIC_EXCESS, UNRESOLVED_STATIC_EXCESS
+
+    stiction = effect_by_name("stiction")
+
+    def reading(ratio):
+        return {"static_ratio": {"mean": ratio, "sd": 0.01}, "stribeck_velocity": {"mean": 0.005, "sd": 0.0}}
+
+    assert "2.0 %" in stiction.immaterial(reading(1.02), {})
+    assert stiction.immaterial(reading(1.0 + LEAST_STATIC_EXCESS + 0.001), {}) is None
+    unresolved = {"stribeck_velocity": "lower"}
+    assert "lower end" in stiction.immaterial(reading(1.1), unresolved)
+    assert stiction.immaterial(reading(1.0 + UNRESOLVED_STATIC_EXCESS + 0.001), unresolved) is None
+    assert stiction.immaterial(reading(1.1), {"stribeck_velocity": "upper"}) is None
+    # every other effect's reading counts whatever its size
+    assert all(e.immaterial({}, {}) is None for e in EFFECTS if e.name != "stiction")

@@ -26,7 +26,9 @@
    away from zero (DERIVED_AMPLITUDE_Z for an effect that reads the acceleration when some
    tests have no accelerometer) and leave the residual RMS at most MAX_RMS_RISE times what it was,
    and an effect whose force grows as a power of the test amplitude (the cubic, the hinge) must
-   fit better than the same shape with no amplitude law (AMPLITUDE_LAW_NATS). A one-column effect whose score is weak by construction (drift, the cubic
+   fit better than the same shape with no amplitude law (AMPLITUDE_LAW_NATS), and a reading too
+   small to be a finding (Effect.immaterial: stiction under 5 % over the kinetic friction) is not
+   selected, whatever its evidence. A one-column effect whose score is weak by construction (drift, the cubic
    stiffness, the hinge friction: Effect.z_selectable) is also selected when its coefficient
    stands COEFFICIENT_Z sds from zero (the hinge: its own Effect.coefficient_z, 8), its score is
    positive and it is the round's best (and, acting within each test, lowers its view's
@@ -41,7 +43,8 @@ speed left out) against that view's own base model: in a view with the reversal 
 table's rest at each reversal, where |u| is largest, projects onto their columns. Stiction
 (REVERSAL_EFFECTS), which lives inside the reversal band, is scored on the reversal view
 (REVERSAL_SIGNALS: cut-off 12f, the reversal weight 0 below 2 % of the peak speed, where v
-crosses zero, rising to 1 at 7 %) against that view's own base model. Both side views read their
+crosses zero, rising to 1 at 7 %, and a pre-sliding turn left out where one is read) against
+that view's own base model. Both side views read their
 plug-in noise from each scored model's own residual (Scorer.consistent_noise,
 CONSISTENT_NOISE_VIEWS). The side
 views are screened first; the effects they select enter the default view's model before its
@@ -640,6 +643,7 @@ def _entry(score: EffectScore) -> dict[str, Any]:
             "params": score.params, "equation": score.effect.equation,
             "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound,
             "grid_edge": dict(score.grid_edge), "sign_p": sign_test(score.diff),
+            "immaterial": None if score.at_bound else score.effect.immaterial(score.params, score.grid_edge),
             "z_loss": loss_scaled_z(score.diff), "z_loss_without_best": loss_scaled_z_without_best(score.diff),
             # None for an effect with neither a linear coefficient nor a null setting: JSON has no infinity
             "amplitude_z": score.amplitude_z if math.isfinite(score.amplitude_z) else None,
@@ -674,6 +678,8 @@ def _selection_rule(s: EffectScore, entry: dict[str, Any], best: bool = False,
     if s.at_bound or not s.amplitude_z >= least_z or entry.get("rms_ratio", 1.0) > MAX_RMS_RISE:
         return None
     if s.amplitude_law_nats is not None and s.amplitude_law_nats < -AMPLITUDE_LAW_NATS:
+        return None
+    if entry.get("immaterial"):
         return None
     if s.score >= MIN_SCORE:
         if s.score >= Z_SELECT * s.score_se:
@@ -776,6 +782,23 @@ def _grid_edge_notes(steps: Sequence[dict[str, Any]], selected_names: Sequence[s
         for key, side in entry.get("grid_edge", {}).items():
             note = (f"{name}: {key} is at the {side} end of its searched range "
                     f"({entry['params'].get(key, {}).get('mean', float('nan')):.4g}); the true value may lie beyond it")
+            if note not in notes:
+                notes.append(note)
+    return notes
+
+
+def _immaterial_notes(steps: Sequence[dict[str, Any]], selected_names: Sequence[str]) -> list[str]:
+    """A note for each effect, not selected, that the data resolve (score at least MIN_SCORE and
+    Z_SELECT standard errors) but whose reading is too small to be a finding (Effect.immaterial)."""
+    notes = []
+    for step in steps:
+        for entry in step["candidates"]:
+            reason = entry.get("immaterial")
+            if (not reason or entry["name"] in selected_names or entry["score"] < MIN_SCORE
+                    or entry["score"] < Z_SELECT * entry["score_se"]):
+                continue
+            note = (f"{entry['name']} is resolved ({entry['score']:.1f} +- {entry['score_se']:.1f} nats) "
+                    f"but not counted: {reason}")
             if note not in notes:
                 notes.append(note)
     return notes
@@ -1198,6 +1221,7 @@ def diagnose(
     order = {name: k for k, name in enumerate(selected_names)}
     ranking.sort(key=lambda r: (order.get(r["name"], len(order)), -r["score"]))
     notes += _grid_edge_notes(steps, selected_names)
+    notes += _immaterial_notes(steps, selected_names)
     timings["total"] = time.perf_counter() - started
     return Diagnosis(
         series_name=series.name,

@@ -75,12 +75,7 @@ def dahl_shape(velocity: np.ndarray, sample_rate_hz: float, presliding_m: float)
         return np.sign(velocity)
     if velocity.size == 0:
         return np.zeros(0)
-    held, new_run, run = _runs(velocity)
-    starts = np.flatnonzero(new_run)
-    travel = np.cumsum(np.abs(velocity) / sample_rate_hz)
-    before = np.r_[0.0, travel[:-1]]  # travel at the start of each sample
-    since_start = before - before[starts][run]
-    run_travel = np.diff(np.r_[before[starts], travel[-1]])
+    held, starts, run, since_start, run_travel = _run_travel(velocity, sample_rate_hz)
     run_direction = held[starts]
     start_value = np.empty(len(starts))
     value = run_direction[0] if run_direction[0] != 0.0 else 1.0
@@ -156,8 +151,9 @@ def _runs(velocity: np.ndarray):
     (which moves nothing) joining the run before it; where a run of one direction begins; the
     run of each sample."""
     held = np.sign(velocity)
-    for index in np.flatnonzero(held == 0.0):
-        held[index] = held[index - 1] if index > 0 else 0.0
+    # each zero takes the direction of the last moving sample before it (0 before the first)
+    last_moving = np.maximum.accumulate(np.where(held != 0.0, np.arange(held.size), 0))
+    held = np.where(held != 0.0, held, held[last_moving])
     new_run = np.r_[True, held[1:] != held[:-1]]
     return held, new_run, np.cumsum(new_run) - 1
 
@@ -165,10 +161,18 @@ def _runs(velocity: np.ndarray):
 def travel_since_reversal(velocity: np.ndarray, sample_rate_hz: float) -> np.ndarray:
     """x(t): the travel (m) since the velocity last changed sign, sum of |v|/fs over the run of
     one sign (see _runs)."""
-    velocity = np.asarray(velocity, dtype=float)
-    _, new_run, run = _runs(velocity)
-    before = np.r_[0.0, np.cumsum(np.abs(velocity) / sample_rate_hz)[:-1]]
-    return before - before[np.flatnonzero(new_run)][run]
+    return _run_travel(np.asarray(velocity, dtype=float), sample_rate_hz)[3]
+
+
+def _run_travel(velocity: np.ndarray, sample_rate_hz: float):
+    """(held, starts, run, since_start, run_travel): _runs' directions and run of each sample,
+    the index where each run begins, the travel (m) from its run's start to the start of each
+    sample, and each run's whole travel."""
+    held, new_run, run = _runs(velocity)
+    starts = np.flatnonzero(new_run)
+    travel = np.cumsum(np.abs(velocity) / sample_rate_hz)
+    before = np.r_[0.0, travel[:-1]]  # travel at the start of each sample
+    return held, starts, run, before - before[starts][run], np.diff(np.r_[before[starts], travel[-1]])
 
 
 def presliding_weight(travel: np.ndarray, presliding_m: float, amplitude_m: float) -> tuple[np.ndarray, float]:
