@@ -58,7 +58,7 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
 
     def score(amplitude_z):
         return SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=15.2, params={},
-                               fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff, amplitude_z=amplitude_z, amplitude_law_nats=None, alpha_marginal=((), ()))
+                               fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={}, diff=diff, amplitude_z=amplitude_z, amplitude_law_nats=None, alpha_marginal=((), ()))
 
     assert MIN_AMPLITUDE_Z == pytest.approx(3.0)
     for amplitude_z, selected in ((1192.0 / 1653.0, False), (2.0, False), (21.4, True)):
@@ -87,7 +87,7 @@ def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best()
 
     def selectable(name, amplitude_z, best=True, scale=1.0, rms_ratio=0.995):
         s = SimpleNamespace(effect=by_name[name], score=float(scale * diff.sum()), score_se=8.4, params={},
-                            fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=scale * diff,
+                            fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={}, diff=scale * diff,
                             amplitude_z=amplitude_z, amplitude_law_nats=None, alpha_marginal=((), ()))
         return _selection_rule(s, dict(_entry(s), rms_ratio=rms_ratio), best=best) is not None
 
@@ -126,7 +126,7 @@ def test_a_weak_hinge_is_selected_by_its_coefficient_z_above_its_own_threshold()
 
     def rule(amplitude_z, rms_ratio=0.998, best=True, at_bound=False, law=None):
         s = SimpleNamespace(effect=hinge, score=float(diff.sum()), score_se=51.5, params={},
-                            fit=SimpleNamespace(alpha=0.86), at_bound=at_bound, grid_edge={}, diff=diff,
+                            fit=SimpleNamespace(alpha=0.86, base=lambda: {"Me": 13200.0}), at_bound=at_bound, grid_edge={}, diff=diff,
                             amplitude_z=amplitude_z, amplitude_law_nats=law, alpha_marginal=((), ()))
         return _selection_rule(s, dict(_entry(s), rms_ratio=rms_ratio), best=best)
 
@@ -258,7 +258,7 @@ def test_an_effect_that_explains_most_of_a_clear_excess_in_one_test_is_selected(
 
     def selected(amplitude_z, before, after, floor):
         s = SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=64.0, params={},
-                            fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff, amplitude_z=amplitude_z, amplitude_law_nats=None, alpha_marginal=((), ()))
+                            fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={}, diff=diff, amplitude_z=amplitude_z, amplitude_law_nats=None, alpha_marginal=((), ()))
         entry = _with_shrink(_entry(s), before, after, floor)
         return _selection_rule(s, entry) is not None, entry
 
@@ -293,12 +293,12 @@ def test_an_effect_that_raises_the_residual_is_not_selected():
     def rule(diff, before, after, se_factor=1.0):
         s = SimpleNamespace(effect=specimen, score=float(diff.sum()),
                             score_se=se_factor * float(np.sqrt(diff.size) * diff.std()),
-                            params={}, fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff,
+                            params={}, fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={}, diff=diff,
                             amplitude_z=237.7, amplitude_law_nats=None, alpha_marginal=((), ()))
         return _selection_rule(s, _with_shrink(_entry(s), before, after, 281.0))
 
     assert _entry(SimpleNamespace(effect=specimen, score=float(one_test.sum()), score_se=24352.2, params={},
-                                  fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=one_test,
+                                  fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={}, diff=one_test,
                                   amplitude_z=237.7, amplitude_law_nats=None, alpha_marginal=((), ())))["z_loss"] > 30.0
     assert rule(one_test, 493.0, 4169.0) is None
     assert rule(one_test, 493.0, 300.0) == "loss_scaled_z"
@@ -328,7 +328,7 @@ def test_the_loss_scaled_rule_asks_a_resolved_amplitude_and_a_one_test_gain_to_s
     def rule(name, diff, amplitude_z, before, after, floor):
         diff = np.asarray(diff)
         s = SimpleNamespace(effect=effects[name], score=float(diff.sum()), score_se=float(np.sqrt(diff.size) * diff.std()),
-                            params={}, fit=SimpleNamespace(alpha=0.5), at_bound=False, grid_edge={}, diff=diff,
+                            params={}, fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={}, diff=diff,
                             amplitude_z=amplitude_z, amplitude_law_nats=None, alpha_marginal=((), ()))
         entry = _with_shrink(_entry(s), before, after, floor)
         assert entry["z_loss"] >= 5.0 and entry["sign_p"] > 0.002 and s.score < 2.5 * s.score_se

@@ -156,4 +156,21 @@ def test_stiction_under_its_least_excess_is_no_finding():
     assert stiction.immaterial(reading(1.0 + UNRESOLVED_STATIC_EXCESS + 0.001), unresolved) is None
     assert stiction.immaterial(reading(1.1), {"stribeck_velocity": "upper"}) is None
     # every other effect's reading counts whatever its size
-    assert all(e.immaterial({}, {}) is None for e in EFFECTS if e.name != "stiction")
+    assert all(e.immaterial({}, {}, {"Me": 13200.0}) is None for e in EFFECTS if e.name not in ("stiction", "specimen"))
+
+
+def test_a_specimen_under_a_hundredth_of_the_deck_is_no_finding():
+    """Specimen.immaterial: the specimens read where there was none were tens of kilograms;
+    one of LEAST_SPECIMEN_SHARE of Me or more counts."""
+    from bayes_sst.effects._library import LEAST_SPECIMEN_SHARE
+
+    specimen = effect_by_name("specimen")
+    base = {"Me": 15800.0}
+
+    def reading(mass):
+        return {"specimen_mass": {"mean": mass, "sd": 10.0}, "specimen_frequency": {"mean": 0.82, "sd": 0.01}}
+
+    assert "47 kg, 0.3 %" in specimen.immaterial(reading(47.0), {}, base)
+    assert specimen.immaterial(reading(LEAST_SPECIMEN_SHARE * 15800.0 + 1.0), {}, base) is None
+    assert specimen.immaterial(reading(700.0), {}, base) is None
+    assert specimen.immaterial(reading(47.0), {}) is None  # no base values: nothing to compare with

@@ -27,8 +27,8 @@
    tests have no accelerometer) and leave the residual RMS at most MAX_RMS_RISE times what it was,
    and an effect whose force grows as a power of the test amplitude (the cubic, the hinge) must
    fit better than the same shape with no amplitude law (AMPLITUDE_LAW_NATS), and a reading too
-   small to be a finding (Effect.immaterial: stiction under 5 % over the kinetic friction) is not
-   selected, whatever its evidence. A one-column effect whose score is weak by construction (drift, the cubic
+   small to be a finding (Effect.immaterial: stiction under 5 % over the kinetic friction, a
+   specimen under 1 % of the deck's mass) is not selected, whatever its evidence. A one-column effect whose score is weak by construction (drift, the cubic
    stiffness, the hinge friction: Effect.z_selectable) is also selected when its coefficient
    stands COEFFICIENT_Z sds from zero (the hinge: its own Effect.coefficient_z, 8), its score is
    positive and it is the round's best (and, acting within each test, lowers its view's
@@ -643,7 +643,7 @@ def _entry(score: EffectScore) -> dict[str, Any]:
             "params": score.params, "equation": score.effect.equation,
             "physics": score.effect.physics, "alpha": score.fit.alpha, "at_bound": score.at_bound,
             "grid_edge": dict(score.grid_edge), "sign_p": sign_test(score.diff),
-            "immaterial": None if score.at_bound else score.effect.immaterial(score.params, score.grid_edge),
+            "immaterial": None if score.at_bound else score.effect.immaterial(score.params, score.grid_edge, score.fit.base()),
             "z_loss": loss_scaled_z(score.diff), "z_loss_without_best": loss_scaled_z_without_best(score.diff),
             # None for an effect with neither a linear coefficient nor a null setting: JSON has no infinity
             "amplitude_z": score.amplitude_z if math.isfinite(score.amplitude_z) else None,
