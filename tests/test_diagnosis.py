@@ -68,6 +68,37 @@ def test_an_effect_whose_amplitude_is_not_resolved_is_not_selected():
         assert (_selection_rule(s, entry) is not None) is selected, amplitude_z
 
 
+def test_a_reading_too_small_to_count_is_not_selected_by_any_rule():
+    """The same specimen scores with a resolved amplitude, read at 47 kg (under 1 % of a 13.2 t
+    deck, Specimen.immaterial) and at 3 t: only the second is selected, and the first's entry
+    says why. The breakaway check's excess is the stiction's limit where the Stribeck velocity
+    is not resolved."""
+    from types import SimpleNamespace
+
+    from bayes_sst.diagnosis._breakaway import BREAKAWAY_EXCESS
+    from bayes_sst.diagnosis._diagnose import _entry, _selection_rule
+    from bayes_sst.effects import FORCE_EFFECTS
+    from bayes_sst.effects._library import UNRESOLVED_STATIC_EXCESS
+
+    assert UNRESOLVED_STATIC_EXCESS == BREAKAWAY_EXCESS
+    diff = np.array([7.7, 3.8, 0.5, -0.2, -0.1, 0.3, -0.6, -1.5, 10.4, -0.2,
+                     0.3, 0.6, -1.5, 7.7, -2.3, -0.2, 0.1, 0.2, -0.4, 0.7])
+    specimen = next(e for e in FORCE_EFFECTS if e.name == "specimen")
+
+    def rule(mass):
+        s = SimpleNamespace(effect=specimen, score=float(diff.sum()), score_se=15.2,
+                            params={"specimen_mass": {"mean": mass, "sd": 5.0}},
+                            fit=SimpleNamespace(alpha=0.5, base=lambda: {"Me": 13200.0}), at_bound=False, grid_edge={},
+                            diff=diff, amplitude_z=21.4, amplitude_law_nats=None, alpha_marginal=((), ()))
+        entry = _entry(s)
+        return _selection_rule(s, entry, best=True), entry
+
+    light, entry = rule(47.0)
+    assert light is None and "47 kg" in entry["immaterial"]
+    heavy, entry = rule(3000.0)
+    assert heavy is not None and entry["immaterial"] is None
+
+
 def test_a_weak_cubic_is_selected_by_its_coefficient_z_only_as_the_rounds_best():
     """3x the gas strut's K'e on the twin (seed 21, prior sd Ke at the time): 8.1 +- 8.4 nats on
     the stroke view, under MIN_SCORE, the coefficient 4.5 sds from zero (no series without a

@@ -732,8 +732,11 @@ def _select(scorer: Scorer, base: ModelFit, effects: Sequence[Effect], floor: fl
         if label:
             step["view"] = label.rstrip("_")
         steps.append(step)
+        # the round's best among the candidates that could count: an immaterial reading (a 47 kg
+        # specimen) scored first must not take the coefficient rule from the effect behind it
+        best = next((k for k, entry in enumerate(step["candidates"]) if not entry.get("immaterial")), None)
         chosen, rule = next(((s, rule) for rank, (s, entry) in enumerate(zip(scores, step["candidates"]))
-                             if (rule := _selection_rule(s, entry, best=rank == 0, derived_acceleration=derived))
+                             if (rule := _selection_rule(s, entry, best=rank == best, derived_acceleration=derived))
                              is not None), (None, None))
         if chosen is None:
             break
@@ -790,18 +793,16 @@ def _grid_edge_notes(steps: Sequence[dict[str, Any]], selected_names: Sequence[s
 def _immaterial_notes(steps: Sequence[dict[str, Any]], selected_names: Sequence[str]) -> list[str]:
     """A note for each effect, not selected, that the data resolve (score at least MIN_SCORE and
     Z_SELECT standard errors) but whose reading is too small to be a finding (Effect.immaterial)."""
-    notes = []
+    notes: dict[str, str] = {}  # one per effect: the first screening that resolved it
     for step in steps:
         for entry in step["candidates"]:
             reason = entry.get("immaterial")
-            if (not reason or entry["name"] in selected_names or entry["score"] < MIN_SCORE
-                    or entry["score"] < Z_SELECT * entry["score_se"]):
+            if (not reason or entry["name"] in selected_names or entry["name"] in notes
+                    or entry["score"] < MIN_SCORE or entry["score"] < Z_SELECT * entry["score_se"]):
                 continue
-            note = (f"{entry['name']} is resolved ({entry['score']:.1f} +- {entry['score_se']:.1f} nats) "
-                    f"but not counted: {reason}")
-            if note not in notes:
-                notes.append(note)
-    return notes
+            notes[entry["name"]] = (f"{entry['name']} is resolved ({entry['score']:.1f} +- {entry['score_se']:.1f} "
+                                    f"nats) but not counted: {reason}")
+    return list(notes.values())
 
 
 def _floor(tests, fit: ModelFit) -> tuple[np.ndarray, float]:
@@ -1194,6 +1195,8 @@ def diagnose(
             selected_names.append("stiction")
             # the reversal view's Stribeck fit found nothing; its reading is kept beside
             stiction["stribeck_fit"] = stiction["params"]
+            stiction["stribeck_fit_immaterial"] = stiction.pop("immaterial", None)
+            stiction["immaterial"] = None
             stiction["params"] = {"static_ratio": {"mean": ratio, "sd": breakaway["static_excess_se"]}}
             stiction["rule"] = "breakaway"
             shrink_basis = "breakaway"

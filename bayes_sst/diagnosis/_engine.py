@@ -259,9 +259,10 @@ def _test_moments(y, X, y_scale: float, col_scale: np.ndarray, noise_j, empty: n
     """One test's whitened moments W = zw zw' of z = (y, X) in scaled units, its number of pairs,
     the plug-in AR(1) phi and innovation sd sigma of its own least-squares residual (of
     noise_residual, N, where given: a model's residual, whose degrees of freedom leave out only
-    the base coefficients, the test's own), and C, what
+    the base coefficients, the test's own), C, what
     the accelerometer's noise adds to W (None without a known noise; zero in the rows of empty
-    columns, which hold no data for the noise to add to)."""
+    columns, which hold no data for the noise to add to), and the residual's degrees of freedom
+    (below MIN_NOISE_DOF _fit replaces sigma by the other tests' pooled value)."""
     p = X.shape[0]
     z = np.vstack([y / y_scale, X / col_scale[:, None]])
     if noise_residual is None:
@@ -347,7 +348,11 @@ def _fit(ys, Xs, names, effect_prior, alpha, spread, terms, noise=None, noise_re
             y, X, y_scale, col_scale, None if noise is None else noise[j], empty,
             None if noise_residuals is None else noise_residuals[j])
     few = dof < MIN_NOISE_DOF
-    if few.any() and not few.all():
+    if few.all():
+        raise ValueError(f"every test keeps too few samples in this view to tell its noise (residual degrees of "
+                         f"freedom {', '.join(str(int(d)) for d in dof)}; at least {MIN_NOISE_DOF} are needed): "
+                         f"longer tests, or more cycles per test, are needed")
+    if few.any():
         sigma[few] = math.sqrt(np.sum(dof[~few] * sigma[~few] ** 2) / np.sum(dof[~few]))
 
     # Errors in variables: the recorded a = a_true + n carries noise the force does not, and within

@@ -12,11 +12,11 @@ import numpy as np
 from bayes_sst.diagnosis._data import REVERSAL_SIGNALS, STROKE_SIGNALS
 from bayes_sst.diagnosis._diagnose import shrink_words
 
-# the side views as their SignalOptions set them, so the text cannot go stale
 def _turn(options) -> str:
     return ", a pre-sliding turn left out where one is read" if options.presliding is None else ""
 
 
+# the side views as their SignalOptions set them, so the text cannot go stale
 _STROKE = f"{STROKE_SIGNALS.cutoff_multiple:g}f, |v| >= {100 * STROKE_SIGNALS.reversal_band:g} % of peak{_turn(STROKE_SIGNALS)}"
 _REVERSAL = (f"{REVERSAL_SIGNALS.cutoff_multiple:g}f, weight 0 below {100 * REVERSAL_SIGNALS.reversal_band:g} % of "
              f"peak speed, 1 above {100 * (REVERSAL_SIGNALS.reversal_band + REVERSAL_SIGNALS.reversal_taper):g} %"

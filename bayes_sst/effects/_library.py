@@ -217,6 +217,8 @@ class Stiction(Effect):
         if "static_ratio" not in params:  # nothing read
             return None
         ratio = float(params["static_ratio"]["mean"])
+        if not math.isfinite(ratio):  # no reading; the amplitude gate refuses it
+            return None
         unresolved = grid_edge.get("stribeck_velocity") == "lower"
         least = UNRESOLVED_STATIC_EXCESS if unresolved else LEAST_STATIC_EXCESS
         if ratio - 1.0 >= least:
@@ -386,7 +388,7 @@ class Specimen(Effect):
         if base is None or "specimen_mass" not in params:
             return None
         mass, deck = float(params["specimen_mass"]["mean"]), abs(float(base["Me"]))
-        if mass >= LEAST_SPECIMEN_SHARE * deck:
+        if not (math.isfinite(mass) and math.isfinite(deck)) or mass >= LEAST_SPECIMEN_SHARE * deck:
             return None
         return (f"a specimen of {mass:.0f} kg, {100 * mass / deck:.1f} % of the deck's effective mass, under the "
                 f"{100 * LEAST_SPECIMEN_SHARE:.0f} % that counts as a specimen")

@@ -161,7 +161,10 @@ def _runs(velocity: np.ndarray):
 def travel_since_reversal(velocity: np.ndarray, sample_rate_hz: float) -> np.ndarray:
     """x(t): the travel (m) since the velocity last changed sign, sum of |v|/fs over the run of
     one sign (see _runs)."""
-    return _run_travel(np.asarray(velocity, dtype=float), sample_rate_hz)[3]
+    velocity = np.asarray(velocity, dtype=float)
+    if velocity.size == 0:
+        return np.zeros(0)
+    return _run_travel(velocity, sample_rate_hz)[3]
 
 
 def _run_travel(velocity: np.ndarray, sample_rate_hz: float):
