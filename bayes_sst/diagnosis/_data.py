@@ -108,7 +108,8 @@ STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal
 # 1.39 read 1.19 (not selected) and -0.52 (at the bound); left out, 1.27 and 1.32, both selected.
 # The same view then reads the small Stribeck excess every simulated clean table carries
 # (1.5-3.6 % read, within 0.5 % of the truth, on 11 of 48 seventh clean series), which the
-# stiction effect does not count as a finding (effects.Stiction.immaterial). No view passes the force of a test without an accelerometer through the derived
+# stiction effect does not count as a finding (effects.Stiction.immaterial).
+# No view passes the force of a test without an accelerometer through the derived
 # acceleration's smoothing (kernel_on_force=False; the fit does since 2026-12-01): the gates
 # were set on the raw force, and EffectData builds the force and the candidate columns from the
 # record itself.

@@ -28,7 +28,8 @@
    and an effect whose force grows as a power of the test amplitude (the cubic, the hinge) must
    fit better than the same shape with no amplitude law (AMPLITUDE_LAW_NATS), and a reading too
    small to be a finding (Effect.immaterial: stiction under 5 % over the kinetic friction, a
-   specimen under 1 % of the deck's mass) is not selected, whatever its evidence. A one-column effect whose score is weak by construction (drift, the cubic
+   specimen under 1 % of the deck's mass) is not selected, whatever its evidence. A one-column
+   effect whose score is weak by construction (drift, the cubic
    stiffness, the hinge friction: Effect.z_selectable) is also selected when its coefficient
    stands COEFFICIENT_Z sds from zero (the hinge: its own Effect.coefficient_z, 8), its score is
    positive and it is the round's best (and, acting within each test, lowers its view's
@@ -1195,8 +1196,7 @@ def diagnose(
             selected_names.append("stiction")
             # the reversal view's Stribeck fit found nothing; its reading is kept beside
             stiction["stribeck_fit"] = stiction["params"]
-            stiction["stribeck_fit_immaterial"] = stiction.pop("immaterial", None)
-            stiction["immaterial"] = None
+            stiction["stribeck_fit_immaterial"], stiction["immaterial"] = stiction.get("immaterial"), None
             stiction["params"] = {"static_ratio": {"mean": ratio, "sd": breakaway["static_excess_se"]}}
             stiction["rule"] = "breakaway"
             shrink_basis = "breakaway"

@@ -12,6 +12,7 @@ import numpy as np
 from bayes_sst.diagnosis._data import REVERSAL_SIGNALS, STROKE_SIGNALS
 from bayes_sst.diagnosis._diagnose import shrink_words
 
+
 def _turn(options) -> str:
     return ", a pre-sliding turn left out where one is read" if options.presliding is None else ""
 
