@@ -224,12 +224,18 @@ REVERSAL_EFFECTS = ("stiction",)
 CONSISTENT_NOISE_VIEWS = ("reversal", "stroke")
 
 
-def shrink_words(basis: str, shrink: float) -> str:
+def shrink_words(basis: str, shrink: float, residual_shrink: float | None = None) -> str:
     """How far the selected effects shrink the misfit, in words, for each shrink basis
-    (Diagnosis.shrink_basis): the verdict's and diagnosis.txt's wording."""
+    (Diagnosis.shrink_basis): the verdict's and diagnosis.txt's wording. residual_shrink: the
+    residual's own shrink, said beside the "absorbed" basis."""
+    within = ("" if residual_shrink is None
+              else f"; within the tests {100 * residual_shrink:.0f} % of the residual's excess removed")
     return {"residual": f"{100 * shrink:.0f} % of the excess removed",
             "between_tests": f"{100 * shrink:.0f} % of the test-to-test scatter of the per-test coefficients "
                              "explained (the residual is not what a between-test effect changes)",
+            "absorbed": f"{100 * shrink:.0f} % of the test-to-test scatter of the per-test coefficients "
+                        "explained (the effect grows with each test's amplitude, which the base model's "
+                        f"per-test coefficients took in{within})",
             "breakaway": f"{100 * shrink:.0f} % of the excess removed where the table rests at its reversals "
                          "(stick-slip friction, kinetic limit against the static one read; the force model's "
                          "samples leave the reversals out, so its own residual is unchanged)"}[basis]
@@ -269,6 +275,9 @@ class Diagnosis:
     # only finding is the breakaway check's stiction, which the force residual does not see: the
     # figures are the stick-slip misfit where the table rests (_breakaway._stick_slip_figures)
     shrink_basis: str = "residual"
+    # "absorbed" (effects whose force the per-test coefficients take in part: Effect.absorbed_by,
+    # the hinge) adds the share on "between_tests"'s terms to the residual's, which is kept here
+    residual_shrink: float | None = None
     # what the signal treatment set aside (a recorded acceleration it refused, ...)
     notes: list[str] = field(default_factory=list)
     # when drift is selected: each base coefficient's fall over the campaign, read from the
@@ -303,7 +312,7 @@ class Diagnosis:
             params = ", ".join(f"{k} = {v['mean']:.4g}" for k, v in entry["params"].items())
             parts.append(f"{name} ({params})")
         before = f"{self.rms_before:.0f}" if self.rms_unit == "N" else f"{self.rms_before:.3g}"
-        removed = shrink_words(self.shrink_basis, self.shrink)
+        removed = shrink_words(self.shrink_basis, self.shrink, self.residual_shrink)
         if self.shrink_basis == "residual" and self.rms_before <= self.noise_floor:
             # the shrink's reference is min(floor, after) (_shrink), so it reads 100 % here
             removed += (" (the residual was already under its noise-floor estimate: the effect is found by "
@@ -320,6 +329,7 @@ class Diagnosis:
             "where": self.where,
             "rms_unit": self.rms_unit,
             "shrink_basis": self.shrink_basis,
+            "residual_shrink": self.residual_shrink,
             "notes": list(self.notes),
             "coefficient_trends": self.trends,
             "noise_floor": self.noise_floor,
@@ -486,6 +496,27 @@ def _shrink(before: float, after: float, floor: float) -> float:
     if excess <= 0:
         return 0.0
     return float(min(1.0, 1.0 - (after**2 - reference**2) / excess))
+
+
+def _shrink_on_basis(before: ModelFit, after: ModelFit, effects: Sequence[Effect], rms_before: float,
+                     rms_after: float, floor: float, positions: Sequence[float]
+                     ) -> tuple[float, str, float | None]:
+    """(shrink, basis, residual shrink) of the `effects` added to `before` (giving `after`).
+
+    "between_tests" where every effect acts between tests only (drift), "absorbed" where every
+    effect acts between tests or has its test-to-test part taken in by the per-test
+    coefficients (Effect.absorbed_by: the hinge) and one of them is of the latter kind: both
+    read _between_test_share over those coefficients; "residual" (_shrink) otherwise. The
+    residual's own shrink is returned beside "absorbed" (None for the others, whose shrink it
+    is or which do not change it)."""
+    residual = _shrink(rms_before, rms_after, floor)
+    if not effects or not all(e.between_tests or e.absorbed_by for e in effects):
+        return residual, "residual", None
+    names = sorted({n for e in effects for n in (e.between_tests or e.absorbed_by)})
+    share = _between_test_share(before, after, names, positions)
+    if all(e.between_tests for e in effects):
+        return share, "between_tests", None
+    return share, "absorbed", residual
 
 
 def _relative_shift(before: dict[str, float], after: dict[str, float]) -> dict[str, float | None]:
@@ -887,11 +918,13 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
     for entry in ranking:
         entry["view"] = view
     rms_before, rms_after = _rms(base.residuals), _rms(final.residuals)
+    shrink, shrink_basis, residual_shrink = _shrink_on_basis(base, final, [s.effect for s in selected], rms_before,
+                                                             rms_after, floor, [t.position for t in tests])
     b, f = base.base(), final.base()
     summary = {
         "selected": [s.effect.name for s in selected], "ranking": ranking, "steps": steps,
         "noise_floor": floor, "rms_before": rms_before, "rms_after": rms_after,
-        "shrink": _shrink(rms_before, rms_after, floor) if selected else 0.0,
+        "shrink": shrink if selected else 0.0, "shrink_basis": shrink_basis, "residual_shrink": residual_shrink,
         "base_shift": _relative_shift(b, f),
         "base": dict(b, spread=base.spread), "final": dict(f, spread=final.spread),
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
@@ -1132,11 +1165,10 @@ def diagnose(
     base_shift = _relative_shift(base_values, final_values)
     selected_names = [s.effect.name for s in selected]
     positions = [t.position for t in tests]
-    shrink = _shrink(rms_before, rms_after, floor) if selected else 0.0
-    shrink_basis = "residual"
-    if selected and all(s.effect.between_tests for s in selected):
-        between = sorted({n for s in selected for n in s.effect.between_tests})
-        shrink, shrink_basis = _between_test_share(start, final, between, positions), "between_tests"
+    shrink, shrink_basis, residual_shrink = _shrink_on_basis(start, final, [s.effect for s in selected],
+                                                             rms_before, rms_after, floor, positions)
+    if not selected:
+        shrink = 0.0
     trends = _coefficient_trends(start, BASE_COEFFICIENTS, positions) if "drift" in selected_names else {}
     ranking = sorted(ranking + side_ranking, key=lambda r: -r["score"])
     steps += side_steps
@@ -1155,7 +1187,7 @@ def diagnose(
         floor, rms_before, rms_after, shrink = (side["noise_floor"], side["rms_before"],
                                                 side["rms_after"], side["shrink"])
         base_shift = side["base_shift"]
-        shrink_basis = "residual"
+        shrink_basis, residual_shrink = side["shrink_basis"], side["residual_shrink"]
     stroke = side_views["stroke"]
 
     t0 = time.perf_counter()
@@ -1199,7 +1231,7 @@ def diagnose(
             stiction["stribeck_fit_immaterial"], stiction["immaterial"] = stiction.get("immaterial"), None
             stiction["params"] = {"static_ratio": {"mean": ratio, "sd": breakaway["static_excess_se"]}}
             stiction["rule"] = "breakaway"
-            shrink_basis = "breakaway"
+            shrink_basis, residual_shrink = "breakaway", None
             # the force model's samples leave the reversals out, so its residual cannot show the
             # finding; the figures are the stick-slip misfit where the table rests (_breakaway)
             misfit = breakaway["misfit"]
@@ -1256,7 +1288,7 @@ def diagnose(
         figures={"tests": tests, "base": base, "final": final, "floors": floors, "views": side_figures,
                  "breakaway_windows": breakaway_windows if shrink_basis == "breakaway" else []},
         rms_unit=rms_unit,
-        shrink_basis=shrink_basis,
+        shrink_basis=shrink_basis, residual_shrink=residual_shrink,
         notes=notes,
         trends=trends,
     )

@@ -71,7 +71,7 @@ def format_diagnosis(data: dict) -> str:
         amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
                    f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
     lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
-             f"{amounts}, {shrink_words(data.get('shrink_basis', 'residual'), data['shrink'])}",
+             f"{amounts}, {shrink_words(data.get('shrink_basis', 'residual'), data['shrink'], data.get('residual_shrink'))}",
              "", "where the base model misses (share of the excess over the noise floor):"]
     # `where` locates the force residual; a breakaway finding's figures above are its own
     if at_rest:
