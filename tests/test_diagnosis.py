@@ -634,6 +634,11 @@ def test_text_output_of_a_breakaway_finding_gives_the_resting_misfit_and_locates
     # the same figures read as a force residual (basis "residual") are a clear excess
     assert not any(line.strip().startswith("nowhere:")
                    for line in format_diagnosis(dict(data, shrink_basis="residual")).splitlines())
+    # the lag that refuses the reading over every reversal, where the run recorded it
+    assert "unless the resting reversals lag" not in format_diagnosis(data)
+    check = dict(data["breakaway_check"], thresholds={"excess": 0.15, "z": 5.0, "lagged_lead_z": -4.0})
+    assert ("selects stiction from 15 % and z 5, unless the resting reversals lag the sweeping ones by over 4 se)"
+            in format_diagnosis(dict(data, breakaway_check=check)))
 
 
 def test_text_output_says_what_the_shrink_is_a_share_of_and_survives_a_missing_shift():
@@ -1793,15 +1798,21 @@ def test_a_test_that_does_not_repeat_from_cycle_to_cycle_gets_a_note():
 
 
 def test_a_smaller_excess_over_every_reversal_selects_only_where_the_resting_reversals_do_not_lag():
-    """selects_over_every_reversal: 0.15 at z 5 selects whatever the lead; 0.12-0.15 at z 5 only
-    with a resting reading whose lead over the sweeping reversals is above -2 of its se (the
-    numbers of the fifth simulator's stiction 1.15 at 1 kHz, 0.149 at z 9.6 with lead -0.012 +-
-    0.015, and of a clean valve-generator table, 0.116 at z 8.1 with lead -0.141 +- 0.009)."""
+    """selects_over_every_reversal: 0.15 at z 5 selects unless the resting reversals lag the
+    sweeping ones by more than 4 of the lead's se; 0.12-0.15 at z 5 only with a resting reading
+    whose lead is above -2 of its se (the numbers of the fifth simulator's stiction 1.15 at 1 kHz,
+    0.149 at z 9.6 with lead -0.012 +- 0.015, of a clean valve-generator table, 0.116 at z 8.1
+    with lead -0.141 +- 0.009, of a clean seventh-simulator table, 0.77 at z 5.5 with lead
+    -1.11 +- 0.177, and of the sixth simulator's stiction 1.55, 0.775 at z 22.1 with lead
+    -0.054 +- 0.061)."""
     from bayes_sst.diagnosis._breakaway import selects_over_every_reversal
 
     no_groups = {"lead": None, "lead_se": None}
     assert selects_over_every_reversal(0.16, 5.1, no_groups)
-    assert selects_over_every_reversal(0.16, 5.1, {"lead": -0.5, "lead_se": 0.01})
+    assert selects_over_every_reversal(0.16, 5.1, {"lead": -0.035, "lead_se": 0.01})
+    assert not selects_over_every_reversal(0.16, 5.1, {"lead": -0.045, "lead_se": 0.01})
+    assert not selects_over_every_reversal(0.77, 5.5, {"lead": -1.11, "lead_se": 0.177})
+    assert selects_over_every_reversal(0.775, 22.1, {"lead": -0.054, "lead_se": 0.061})
     assert not selects_over_every_reversal(0.16, 4.9, no_groups)
     assert selects_over_every_reversal(0.149, 9.6, {"lead": -0.012, "lead_se": 0.015})
     assert not selects_over_every_reversal(0.149, 9.6, no_groups)

@@ -1114,9 +1114,12 @@ def diagnose(
             side_scorers[view].base_scale.update(view_base.base())
             view_final = fit_base(side_scorers[view], main_terms + kept) if kept else view_base
             rms_kept = _rms(view_final.residuals)
+            kept_shrink, kept_basis, kept_residual = _shrink_on_basis(
+                view_base, view_final, [e for e, _ in kept], check["rms_before"], rms_kept, check["noise_floor"],
+                [t.position for t in side_scorers[view].tests])
             side.update(selected=[e.name for e, _ in kept], given=check["given"],
                         rms_before=check["rms_before"], noise_floor=check["noise_floor"], rms_after=rms_kept,
-                        shrink=_shrink(check["rms_before"], rms_kept, check["noise_floor"]) if kept else 0.0,
+                        shrink=kept_shrink if kept else 0.0, shrink_basis=kept_basis, residual_shrink=kept_residual,
                         base=dict(view_base.base(), spread=view_base.spread),
                         final=dict(view_final.base(), spread=view_final.spread),
                         base_shift=_relative_shift(view_base.base(), view_final.base()))

@@ -97,6 +97,8 @@ def format_diagnosis(data: dict) -> str:
                   f"{100 * check['excess']:+.1f} +- {100 * check['excess_se']:.1f} % (z {check['z']:.1f}; "
                   f"{check['tests']} tests, {check['reversals']} reversals; selects stiction from "
                   f"{100 * check['thresholds']['excess']:.0f} % and z {check['thresholds']['z']:g}"
+                  + (f", unless the resting reversals lag the sweeping ones by over {-check['thresholds']['lagged_lead_z']:g} "
+                     "se" if "lagged_lead_z" in check["thresholds"] else "")
                   + ("" if check.get("used") else ", not used: another effect was selected") + ")"]
         reading = check.get("resting") or {}
         resting, sweeping = reading.get("resting"), reading.get("sweeping")
