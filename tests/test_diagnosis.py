@@ -595,6 +595,8 @@ def test_a_hinge_shrink_is_read_on_the_per_test_friction_it_took_in_with_the_res
     rms_before, rms_after, floor = 107.5, 108.1, 103.2
     hinge = effects["position_friction"]
     assert hinge.absorbed_by == ("Ce", "Fmu") and not hinge.between_tests
+    assert effects["stiction"].absorbed_by == ("Ce", "Fmu")
+    assert not effects["nonlinear_stiffness"].absorbed_by and not effects["specimen"].absorbed_by
     shrink, basis, residual = _shrink_on_basis(before, after, [hinge], rms_before, rms_after, floor, positions)
     assert basis == "absorbed"
     assert shrink == pytest.approx(_between_test_share(before, after, ("Ce", "Fmu"), positions), rel=1e-12)

@@ -234,8 +234,8 @@ def shrink_words(basis: str, shrink: float, residual_shrink: float | None = None
             "between_tests": f"{100 * shrink:.0f} % of the test-to-test scatter of the per-test coefficients "
                              "explained (the residual is not what a between-test effect changes)",
             "absorbed": f"{100 * shrink:.0f} % of the test-to-test scatter of the per-test coefficients "
-                        "explained (the effect grows with each test's amplitude, which the base model's "
-                        f"per-test coefficients took in{within})",
+                        "explained (part of the effect's force changes from test to test, and the base model's "
+                        f"per-test coefficients took it in{within})",
             "breakaway": f"{100 * shrink:.0f} % of the excess removed where the table rests at its reversals "
                          "(stick-slip friction, kinetic limit against the static one read; the force model's "
                          "samples leave the reversals out, so its own residual is unchanged)"}[basis]
@@ -276,7 +276,7 @@ class Diagnosis:
     # figures are the stick-slip misfit where the table rests (_breakaway._stick_slip_figures)
     shrink_basis: str = "residual"
     # "absorbed" (effects whose force the per-test coefficients take in part: Effect.absorbed_by,
-    # the hinge) adds the share on "between_tests"'s terms to the residual's, which is kept here
+    # the hinge, stiction) adds the share on "between_tests"'s terms to the residual's, which is kept here
     residual_shrink: float | None = None
     # what the signal treatment set aside (a recorded acceleration it refused, ...)
     notes: list[str] = field(default_factory=list)
@@ -505,7 +505,7 @@ def _shrink_on_basis(before: ModelFit, after: ModelFit, effects: Sequence[Effect
 
     "between_tests" where every effect acts between tests only (drift), "absorbed" where every
     effect acts between tests or has its test-to-test part taken in by the per-test
-    coefficients (Effect.absorbed_by: the hinge) and one of them is of the latter kind: both
+    coefficients (Effect.absorbed_by: the hinge, stiction) and one of them is of the latter kind: both
     read _between_test_share over those coefficients; "residual" (_shrink) otherwise. The
     residual's own shrink is returned beside "absorbed" (None for the others, whose shrink it
     is or which do not change it)."""
