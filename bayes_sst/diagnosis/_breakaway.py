@@ -424,6 +424,7 @@ def breakaway_check(series: Series, tests: Sequence[EffectData],
                "misfit": _stick_slip_figures(windows, 1.0 + ratio_excess) if windows else None,
                "thresholds": {"excess": BREAKAWAY_EXCESS, "z": BREAKAWAY_Z, "unlagged_excess": UNLAGGED_EXCESS,
                               "unlagged_lead_z": UNLAGGED_LEAD_Z, "lagged_lead_z": LAGGED_LEAD_Z,
-                              "resting_inertia": RESTING_INERTIA, "sweeping_inertia": SWEEPING_INERTIA, "resting_excess": RESTING_EXCESS,
-                              "resting_z": RESTING_Z, "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}
+                              "resting_inertia": RESTING_INERTIA, "sweeping_inertia": SWEEPING_INERTIA,
+                              "resting_excess": RESTING_EXCESS, "resting_z": RESTING_Z,
+                              "resting_lead": RESTING_LEAD, "resting_lead_z": RESTING_LEAD_Z}}
     return reading, windows

@@ -275,8 +275,9 @@ class Diagnosis:
     # only finding is the breakaway check's stiction, which the force residual does not see: the
     # figures are the stick-slip misfit where the table rests (_breakaway._stick_slip_figures)
     shrink_basis: str = "residual"
-    # "absorbed" (effects whose force the per-test coefficients take in part: Effect.absorbed_by,
-    # the hinge, stiction) adds the share on "between_tests"'s terms to the residual's, which is kept here
+    # "absorbed": the same share, for effects whose force the per-test coefficients take in in
+    # part (Effect.absorbed_by: the hinge, stiction); their residual's own shrink is kept here
+    # (None for the other bases)
     residual_shrink: float | None = None
     # what the signal treatment set aside (a recorded acceleration it refused, ...)
     notes: list[str] = field(default_factory=list)
@@ -505,8 +506,8 @@ def _shrink_on_basis(before: ModelFit, after: ModelFit, effects: Sequence[Effect
 
     "between_tests" where every effect acts between tests only (drift), "absorbed" where every
     effect acts between tests or has its test-to-test part taken in by the per-test
-    coefficients (Effect.absorbed_by: the hinge, stiction) and one of them is of the latter kind: both
-    read _between_test_share over those coefficients; "residual" (_shrink) otherwise. The
+    coefficients (Effect.absorbed_by: the hinge, stiction) and one of them is of the latter
+    kind: both read _between_test_share over those coefficients; "residual" (_shrink) otherwise. The
     residual's own shrink is returned beside "absorbed" (None for the others, whose shrink it
     is or which do not change it)."""
     residual = _shrink(rms_before, rms_after, floor)

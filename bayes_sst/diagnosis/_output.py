@@ -70,8 +70,8 @@ def format_diagnosis(data: dict) -> str:
     else:  # the oil column's command-to-motion misfit, dimensionless
         amounts = (f"command-to-motion response misfit: noise floor {data['noise_floor']:.3g}, RMS before "
                    f"{data['rms_before']:.3g}, after {data['rms_after']:.3g}")
-    lines = [f"Diagnosis of {data['series']}", data["verdict"], "",
-             f"{amounts}, {shrink_words(data.get('shrink_basis', 'residual'), data['shrink'], data.get('residual_shrink'))}",
+    removed = shrink_words(data.get("shrink_basis", "residual"), data["shrink"], data.get("residual_shrink"))
+    lines = [f"Diagnosis of {data['series']}", data["verdict"], "", f"{amounts}, {removed}",
              "", "where the base model misses (share of the excess over the noise floor):"]
     # `where` locates the force residual; a breakaway finding's figures above are its own
     if at_rest:
@@ -97,8 +97,8 @@ def format_diagnosis(data: dict) -> str:
                   f"{100 * check['excess']:+.1f} +- {100 * check['excess_se']:.1f} % (z {check['z']:.1f}; "
                   f"{check['tests']} tests, {check['reversals']} reversals; selects stiction from "
                   f"{100 * check['thresholds']['excess']:.0f} % and z {check['thresholds']['z']:g}"
-                  + (f", unless the resting reversals lag the sweeping ones by over {-check['thresholds']['lagged_lead_z']:g} "
-                     "se" if "lagged_lead_z" in check["thresholds"] else "")
+                  + (", unless the resting reversals lag the sweeping ones by over "
+                     f"{-check['thresholds']['lagged_lead_z']:g} se" if "lagged_lead_z" in check["thresholds"] else "")
                   + ("" if check.get("used") else ", not used: another effect was selected") + ")"]
         reading = check.get("resting") or {}
         resting, sweeping = reading.get("resting"), reading.get("sweeping")
