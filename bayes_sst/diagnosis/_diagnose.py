@@ -509,9 +509,11 @@ def _shrink_on_basis(before: ModelFit, after: ModelFit, effects: Sequence[Effect
     coefficients (Effect.absorbed_by: the hinge, stiction) and one of them is of the latter
     kind: both read _between_test_share over those coefficients; "residual" (_shrink) otherwise. The
     residual's own shrink is returned beside "absorbed" (None for the others, whose shrink it
-    is or which do not change it)."""
+    is or which do not change it). No effects: nothing removed, (0, "residual", None)."""
+    if not effects:
+        return 0.0, "residual", None
     residual = _shrink(rms_before, rms_after, floor)
-    if not effects or not all(e.between_tests or e.absorbed_by for e in effects):
+    if not all(e.between_tests or e.absorbed_by for e in effects):
         return residual, "residual", None
     names = sorted({n for e in effects for n in (e.between_tests or e.absorbed_by)})
     share = _between_test_share(before, after, names, positions)
@@ -925,7 +927,7 @@ def _side_view(series: Series, effects: Sequence[Effect], options: SignalOptions
     summary = {
         "selected": [s.effect.name for s in selected], "ranking": ranking, "steps": steps,
         "noise_floor": floor, "rms_before": rms_before, "rms_after": rms_after,
-        "shrink": shrink if selected else 0.0, "shrink_basis": shrink_basis, "residual_shrink": residual_shrink,
+        "shrink": shrink, "shrink_basis": shrink_basis, "residual_shrink": residual_shrink,
         "base_shift": _relative_shift(b, f),
         "base": dict(b, spread=base.spread), "final": dict(f, spread=final.spread),
         "cutoff_multiple": options.cutoff_multiple, "reversal_band": options.reversal_band,
@@ -1120,7 +1122,7 @@ def diagnose(
                 [t.position for t in side_scorers[view].tests])
             side.update(selected=[e.name for e, _ in kept], given=check["given"],
                         rms_before=check["rms_before"], noise_floor=check["noise_floor"], rms_after=rms_kept,
-                        shrink=kept_shrink if kept else 0.0, shrink_basis=kept_basis, residual_shrink=kept_residual,
+                        shrink=kept_shrink, shrink_basis=kept_basis, residual_shrink=kept_residual,
                         base=dict(view_base.base(), spread=view_base.spread),
                         final=dict(view_final.base(), spread=view_final.spread),
                         base_shift=_relative_shift(view_base.base(), view_final.base()))
@@ -1171,8 +1173,6 @@ def diagnose(
     positions = [t.position for t in tests]
     shrink, shrink_basis, residual_shrink = _shrink_on_basis(start, final, [s.effect for s in selected],
                                                              rms_before, rms_after, floor, positions)
-    if not selected:
-        shrink = 0.0
     trends = _coefficient_trends(start, BASE_COEFFICIENTS, positions) if "drift" in selected_names else {}
     ranking = sorted(ranking + side_ranking, key=lambda r: -r["score"])
     steps += side_steps
