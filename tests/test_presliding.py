@@ -153,3 +153,20 @@ def test_the_diagnosis_default_view_leaves_out_the_floor_where_the_fit_does():
     flip = _series(0.0)
     for a, b in zip(effect_data(flip), effect_data(flip, replace(DIAGNOSIS_SIGNALS, presliding_floor=0.0))):
         assert np.array_equal(a.weight_full, b.weight_full) and np.array_equal(a.F_full, b.F_full)
+
+
+def test_a_profile_peaks_within_a_floor_only_where_its_best_gain_up_to_the_longest_travel_lies_there():
+    """Hand numbers, measured on the default view: the seventh simulator's clean seed 31 (a 40 um
+    turn the profile cannot tell from a lag over a time) peaks at 40 um; the virtual table
+    without its accelerometer leans by 3.2 nats at 40 um but goes on rising (15.3 at 160 um),
+    so a floor of 40 um would not cover what it reads. Past PRESLIDING_MAX_M the gain does not
+    count: a profile whose best within 160 um is at 20 um peaks within 40 um even if it rises
+    again beyond."""
+    from bayes_sst.signals._presliding import PreslidingProfile
+
+    seed_31 = PreslidingProfile((11.9, 21.2, 24.3, 23.8, 21.9, 17.7, 12.6), (2.2, 17.7, 23.0, 20.4, 15.4), 0.0)
+    twin_without_a = PreslidingProfile((-0.3, 2.4, 3.2, 6.0, 15.3, 26.8, 30.7), (-2.0, 2.9, 12.7, 14.9, 13.1), 0.0)
+    rising_beyond = PreslidingProfile((12.2, 20.6, 18.4, 6.9, 11.4, 32.1, 43.8), (0.0,) * 5, 0.0)
+    assert seed_31.leans_to_turn(40e-6) and seed_31.peaks_within(40e-6) and not seed_31.peaks_within(20e-6)
+    assert twin_without_a.leans_to_turn(40e-6) and not twin_without_a.peaks_within(40e-6)
+    assert rising_beyond.peaks_within(20e-6)

@@ -169,6 +169,9 @@ class SignalOptions:
         shorter turn, or none but leans to one (its profile gains at least 2 nats at a travel
         up to the floor): the profile cannot read a turn of a few tens of um, at low sampling
         rates least (docs/measurements.md, 2026-12-01).
+    presliding_floor_needs_peak : take the floor on a lean only where the profile's best gain up
+        to PRESLIDING_MAX_M lies within the floor (PreslidingProfile.peaks_within); the
+        diagnosis's default view does (diagnosis._data says why), the fit does not.
     kernel_on_force : where the acceleration is derived (no accelerometer), pass the force, the
         displacement and the velocity regressors through the smoothing the derived acceleration
         went through (acceleration_kernel), before the reversal weight (module docstring, point 3).
@@ -198,6 +201,7 @@ class SignalOptions:
     noise_difference_order: int = 4
     presliding: float | None = None
     presliding_floor: float = 40e-6
+    presliding_floor_needs_peak: bool = False
     kernel_on_force: bool = True
 
     def band_for(self, measured_acceleration: bool) -> "SignalOptions":
@@ -904,7 +908,9 @@ def prepare_series(series: Series, options: SignalOptions = SignalOptions()) -> 
     chosen = {k: _prepared(series, records[k], without_turn) for k in range(0, len(records), stride)}
     profile = presliding_profile(list(chosen.values()))
     travel = profile.presliding_m
-    if options.presliding_floor > travel and (travel > 0.0 or profile.leans_to_turn(options.presliding_floor)):
+    leans = profile.leans_to_turn(options.presliding_floor) and (
+        not options.presliding_floor_needs_peak or profile.peaks_within(options.presliding_floor))
+    if options.presliding_floor > travel and (travel > 0.0 or leans):
         travel = options.presliding_floor
     if travel <= 0.0:
         return [chosen[k] if k in chosen else _prepared(series, record, without_turn) for k, record in enumerate(records)]

@@ -107,6 +107,16 @@ class PreslidingProfile(NamedTuple):
         gains = [g for x, g in zip(PRESLIDING_GRID_M, self.travel_gain) if x <= up_to_m * (1 + 1e-9)]
         return bool(gains) and max(gains) >= LEANING_GAIN_NATS
 
+    def peaks_within(self, up_to_m: float) -> bool:
+        """Whether the best gain at travels up to PRESLIDING_MAX_M lies at a travel no longer
+        than up_to_m: a turn that short, not a profile still rising past it (a lag over a time,
+        a derived acceleration's smoothing), which a floor of up_to_m would not cover."""
+        travels = [(x, g) for x, g in zip(PRESLIDING_GRID_M, self.travel_gain) if x <= PRESLIDING_MAX_M * (1 + 1e-9)]
+        if not travels:
+            return False
+        best_travel = max(travels, key=lambda item: item[1])[0]
+        return best_travel <= up_to_m * (1 + 1e-9)
+
 
 def _test_log_likelihoods(test, shapes: Sequence) -> np.ndarray:
     """Per shape of friction (functions of the velocity record), the test's Gaussian log
