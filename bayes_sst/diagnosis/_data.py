@@ -106,11 +106,11 @@ STROKE_SIGNALS = SignalOptions(cutoff_multiple=8.0, reversal_band=0.35, reversal
 # 40 um turn of the seventh simulator's clean seed 31, which the profile could not tell from a
 # turn over a time (24.3 against 23.0 nats), filled three fast 1 mm sines and was claimed as a
 # 626 kg specimen at 26.8 Hz (115 +- 70 nats), the base Me 4.1 % low; with the floor nothing is
-# claimed and Me reads within 0.1 %. On the 15 other series it touches, of 102 of three
+# claimed and Me reads within 0.1 %. On the 14 other series it touches, of 102 of three
 # simulators, no selection changed (docs/diagnosis.md, Known gaps). The stroke and reversal views
-# keep no floor: their gates were set without it, and it is not measured there. On the seventh simulator (LuGre bristles of 30-150 um)
-# the turn's misfit at every reversal had been claimed on clean seeds 0 and 7 as a strut inertia
-# and a channel delay, and had hidden a weak cubic, a hinge and a drift (docs/diagnosis.md,
+# keep no floor: their gates were set without it, and it is not measured there.
+# On the seventh simulator (LuGre bristles of 30-150 um) the turn's misfit at every reversal
+# had been claimed on clean seeds 0 and 7 as a strut inertia and a channel delay, and had hidden a weak cubic, a hinge and a drift (docs/diagnosis.md,
 # Known gaps). The reversal view does the same since the night of 2026-12-01: where a turn is
 # read its samples after each reversal are left out, and the table's approach to the reversal
 # (decelerating, where a Stribeck curve raises the friction toward its static level) and the
