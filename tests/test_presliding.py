@@ -161,7 +161,8 @@ def test_a_profile_peaks_within_a_floor_only_where_its_best_gain_up_to_the_longe
     without its accelerometer leans by 3.2 nats at 40 um but goes on rising (15.3 at 160 um),
     so a floor of 40 um would not cover what it reads. Past PRESLIDING_MAX_M the gain does not
     count: a profile whose best within 160 um is at 20 um peaks within 40 um even if it rises
-    again beyond."""
+    again beyond. A best at the grid's first travel (10 um) is no peak: the fifth simulator's
+    seed 214 (a 3.26 t specimen at 8.08 Hz) is at its best there and keeps its specimen."""
     from bayes_sst.signals._presliding import PreslidingProfile
 
     seed_31 = PreslidingProfile((11.9, 21.2, 24.3, 23.8, 21.9, 17.7, 12.6), (2.2, 17.7, 23.0, 20.4, 15.4), 0.0)
@@ -170,3 +171,5 @@ def test_a_profile_peaks_within_a_floor_only_where_its_best_gain_up_to_the_longe
     assert seed_31.leans_to_turn(40e-6) and seed_31.peaks_within(40e-6) and not seed_31.peaks_within(20e-6)
     assert twin_without_a.leans_to_turn(40e-6) and not twin_without_a.peaks_within(40e-6)
     assert rising_beyond.peaks_within(20e-6)
+    specimen_214 = PreslidingProfile((20.6, 17.5, 5.1, -9.2, -21.3, -44.7, -39.8), (12.2, 10.5, -12.9, -23.6, -34.4), 0.0)
+    assert specimen_214.leans_to_turn(40e-6) and not specimen_214.peaks_within(40e-6)
