@@ -1,13 +1,16 @@
 """Fit and diagnose the blind generators' series: six clean series and, for each of six
 effects, a clear and a weak case, from benchmarks/lugre_generator.py (LuGre friction, written
-2026-11-26) or benchmarks/valve_generator.py (servo-valve and two-chamber cylinder, DAQ
-anti-alias filter, ADC and mains hum, written 2026-11-27), each by a helper session that saw
-the data format and the physics but not this package.
+2026-11-26), benchmarks/valve_generator.py (servo-valve and two-chamber cylinder, DAQ
+anti-alias filter, ADC and mains hum, written 2026-11-27) or benchmarks/eighth_generator.py
+(written 2026-12-02; a seventh effect, a low oil column, in a broadband test), each by a
+helper session that saw the data format and the physics but not this package.
 
     PYTHONPATH=. .venv/bin/python benchmarks/blind_check.py --generator lugre --dir /tmp/lugre \
         --out benchmarks/results/lugre_check.json
     PYTHONPATH=. .venv/bin/python benchmarks/blind_check.py --generator valve --dir /tmp/valve \
         --out benchmarks/results/valve_check.json
+    PYTHONPATH=. .venv/bin/python benchmarks/blind_check.py --generator eighth --dir /tmp/eighth \
+        --out benchmarks/results/eighth_check.json
 
 Series missing from --dir are generated first (10-40 s each). Per series: each population
 value's error and z = (mean - truth)/sd, whether the 90 % interval covers it, the diagnosis's
@@ -41,7 +44,12 @@ LUGRE_CASES = (
 VALVE_CASES = tuple((f"clean_{s}", s, None, None, None) for s in range(6)) + tuple(
     (f"{SHORT.get(e, e)}_{size}", 10 + 2 * i + k, e, size, None)
     for i, e in enumerate(EFFECT_CASES) for k, size in enumerate(("strong", "weak")))
-GENERATORS = {"lugre": ("lugre_generator", LUGRE_CASES), "valve": ("valve_generator", VALVE_CASES)}
+# the eighth (2026-12-02) also withholds a low oil column, seen in a broadband test
+EIGHTH_CASES = tuple((f"clean_{s}", s, None, None, None) for s in range(6)) + tuple(
+    (f"{SHORT.get(e, e)}_{size}", 10 + 2 * i + k, e, size, None)
+    for i, e in enumerate(EFFECT_CASES + ("oil_column",)) for k, size in enumerate(("strong", "weak")))
+GENERATORS = {"lugre": ("lugre_generator", LUGRE_CASES), "valve": ("valve_generator", VALVE_CASES),
+              "eighth": ("eighth_generator", EIGHTH_CASES)}
 
 
 def main():

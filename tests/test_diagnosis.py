@@ -1409,6 +1409,8 @@ def test_a_loop_that_only_lags_has_no_oil_column_and_a_resonance_in_band_is_foun
     # the entry's params, which diagnosis.json's ranking and the page show, carry the peak too
     assert ringing["params"]["peak_frequency"]["mean"] == peak["peak_frequency_hz"]
     assert ringing["params"]["oil_frequency"] == peak["oil_frequency"]
+    # a series without a table description has no analytic frequency to stand beside it
+    assert peak["analytic_frequency_hz"] is None and peak["analytic_ratio"] is None
 
 
 def test_the_oil_check_skips_tests_without_a_command_and_a_flat_loop_writes_as_json():
@@ -1442,6 +1444,12 @@ def test_the_twins_oil_column_is_found_at_its_closed_loop_resonance():
         # (the flat base's -3.4 % and +1.0 %: without the loop's delay f_o is the peak's stand-in)
         assert entry["peak_frequency_hz"] == pytest.approx(truth["resonance_hz"], rel=0.03)
         assert entry["oil_frequency"]["mean"] == pytest.approx(truth["resonance_hz"], rel=0.2)
+        # the described table's f_oil = sqrt(2*beta*A^2/(V*(deck + payload)))/2pi, by hand
+        oil = series.table["oil"]
+        by_hand = math.sqrt(2.0 * oil["bulk_modulus_pa"] * oil["piston_area_m2"] ** 2 / oil["oil_volume_m3"]
+                            / (series.table["deck_mass_kg"] + entry["payload_kg"])) / (2.0 * math.pi)
+        assert entry["analytic_frequency_hz"] == pytest.approx(by_hand, rel=1e-12)
+        assert entry["analytic_ratio"] == pytest.approx(entry["oil_frequency"]["mean"] / by_hand, rel=1e-12)
 
 
 def test_local_peaks_of_a_coarse_profile_are_its_local_maxima_best_first():

@@ -1207,7 +1207,11 @@ def diagnose(
         ranking[-1]["test_elpd_diff"] = []
         oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
         if _oil_selectable(oil):
-            say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f})")
+            head = oil["per_payload"][0]
+            beside = (f"; the description's analytic f_oil {head['analytic_frequency_hz']:.1f} Hz"
+                      if head.get("analytic_frequency_hz") is not None else "")
+            say(f"selected oil_column (score {oil['score']:.1f} +- {oil['score_se']:.1f}; "
+                f"f_o {head['oil_frequency']['mean']:.1f} Hz{beside})")
             selected_names.append("oil_column")
             oil["selected"] = True
             if not selected and not any(v and v["selected"] for v in side_views.values()):

@@ -27,6 +27,14 @@ the Hann/50 % overlap correlation of neighbouring bins (bayes_sst.oil._frf.bin_e
 A resonance is only claimed where it was measured: a best f_o outside the usable bins, or a
 damping at the grid's top (0.8, no peak: any zeta above 0.71 is a roll-off), is `at_bound`
 and not selectable.
+
+Beside each payload's fitted resonance stands the analytic f_oil of the series' table
+description (bayes_sst.oil._analytic, the study's 2*beta form with V each chamber's volume,
+M the described deck mass plus the payload) and the ratio f_o/f_oil, None where the
+description lacks a field. It is a reading aid, not part of the rule: the study's table rang
+at 28.3 Hz against 28.6 Hz analytic, a column well below its described frequency points to
+entrained air or more oil than described, and descriptions differ on whether V is each
+chamber's volume or both chambers' (a factor sqrt(2) in f_oil; `bayes-sst ocrf --chambers`).
 """
 
 from __future__ import annotations
@@ -97,6 +105,16 @@ def resonance_fit(h, f, w, effect: OilColumn):
     return (*best, profile)
 
 
+def _analytic_beside(series: Series, payload: float, fitted_hz: float) -> dict[str, float | None]:
+    """The described table's analytic f_oil at this payload and the fitted f_o's ratio to it."""
+    from bayes_sst.oil._analytic import analytic_oil_frequency, missing_for_analytic
+
+    if missing_for_analytic(series.table):
+        return {"analytic_frequency_hz": None, "analytic_ratio": None}
+    analytic = analytic_oil_frequency(series.table, payload)
+    return {"analytic_frequency_hz": analytic, "analytic_ratio": fitted_hz / analytic}
+
+
 def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[str, Any] | None:
     """Score the oil_column effect on the series' broadband tests that record a command; None
     when it has none."""
@@ -142,6 +160,7 @@ def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[st
             # where |H| peaks, f_o*sqrt(1 - 2 zeta^2): what a measured frequency response shows
             "peak_frequency_hz": (float(setting["oil_frequency"] * math.sqrt(1.0 - 2.0 * setting["oil_damping"] ** 2))
                                   if setting["oil_damping"] ** 2 < 0.5 else None),
+            **_analytic_beside(series, payload, float(setting["oil_frequency"])),
             "delay_s": delay, "base": base_setting,
             "at_bound": bool(outside or top),
             "bound": "frequency outside the measured band" if outside else ("damping at the grid's top (no peak)"
