@@ -58,9 +58,13 @@ def main():
     parser.add_argument("--dir", default=None, help="series folder (default /tmp/bayes_sst_GENERATOR)")
     parser.add_argument("--out", default=None)
     parser.add_argument("--only", nargs="*", default=None, help="case names to run")
+    parser.add_argument("--clean-seeds", nargs=2, type=int, default=None, metavar=("FIRST", "STOP"),
+                        help="instead of the cases: clean series of seeds FIRST to STOP-1")
     args = parser.parse_args()
     sys.path.insert(0, str(HERE))
     module, cases = GENERATORS[args.generator]
+    if args.clean_seeds:
+        cases = tuple((f"clean_{s}", s, None, None, None) for s in range(*args.clean_seeds))
     generate = __import__(module).generate
     base_dir = args.dir or f"/tmp/bayes_sst_{args.generator}"
 
@@ -95,6 +99,7 @@ def main():
         diagnosis = diagnose(series).to_json()
         row["diagnose_s"] = round(time.perf_counter() - started, 1)
         row["selected"] = diagnosis["selected"]
+        row["broadband"] = any(t.spec.kind == "broadband" for t in series.tests)
         row["top"] = [(r["name"], round(r["score"], 1), round(r["score_se"], 1)) for r in diagnosis["ranking"][:3]]
         row["params"] = {r["name"]: r["params"] for r in diagnosis["ranking"] if r["name"] in diagnosis["selected"]}
         rows.append(row)
@@ -105,7 +110,13 @@ def main():
     with_effect = [r for r in rows if r["effect"] is not None]
     for key in NAMES:
         print(f"{key:6s} covered in {sum(r[key]['covered'] for r in rows)} of {len(rows)}")
-    print(f"clean series with nothing selected: {sum(not r['selected'] for r in clean)} of {len(clean)}")
+    print(f"clean series with nothing selected: {sum(not r['selected'] for r in clean)} of {len(clean)}; "
+          f"with a force effect: {sum(any(n != 'oil_column' for n in r['selected']) for r in clean)}; "
+          f"with the oil column: {sum('oil_column' in r['selected'] for r in clean)} "
+          f"(of {sum(r['broadband'] for r in clean)} with a broadband test)")
+    for key in NAMES:
+        near = 0.05 if key == "alpha" else {"Ce": 0.10}.get(key, 0.03)
+        print(f"{key:6s} within the issue's tolerance ({near:g}) in {sum(abs(r[key]['error']) <= near for r in rows)} of {len(rows)}")
     print(f"effect series with the effect selected first: "
           f"{sum(bool(r['selected']) and r['selected'][0] == r['effect'] for r in with_effect)} of {len(with_effect)}")
     if args.out:
