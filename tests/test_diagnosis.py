@@ -1452,6 +1452,45 @@ def test_the_twins_oil_column_is_found_at_its_closed_loop_resonance():
         assert entry["analytic_ratio"] == pytest.approx(entry["oil_frequency"]["mean"] / by_hand, rel=1e-12)
 
 
+def test_a_twin_with_a_stiff_oil_column_has_no_resonance_to_claim():
+    """The twin's oil column is switched off by stiffening it: ten times the oil's bulk modulus
+    puts f_oil at sqrt(10) times the nominal, about 91 Hz, where the loop shows no peak (its
+    truth's resonance_hz is None; simulate refused such a table until 2026-12-02). The oil
+    check then finds a loop that only lags and claims nothing."""
+    from bayes_sst.diagnosis._oil import oil_column_check
+    from bayes_sst.twin._plan import broadband_plan
+
+    plan = broadband_plan((0.0,), ("noise",))
+    nominal = simulate(plan=plan, seed=1).tests[0].spec.extra["truth"]
+    stiff = simulate(plan=plan, seed=1, truth_overrides={"bulk_modulus": 10 * TRUTH.bulk_modulus})
+    truth = stiff.tests[0].spec.extra["truth"]
+    assert truth["resonance_hz"] is None and stiff.extra["truth"]["resonance_hz"] is None
+    assert truth["f_oil_hz"] == pytest.approx(math.sqrt(10.0) * nominal["f_oil_hz"], rel=1e-9)
+    check = oil_column_check(stiff)
+    assert check["at_bound"]
+
+
+@pytest.mark.slow
+def test_broadband_tests_on_a_clean_twin_claim_its_oil_column_only_where_it_rings():
+    """A clean campaign with a broadband test: with the preset's column (28.6 Hz) the diagnosis
+    selects oil_column, and nothing else; with the column stiffened out of the band, nothing.
+    Measured 2026-12-02 (seed 11): f_o 29.6 Hz, peak 28.4 Hz; the stiff table's verdict none
+    with its force residual at 213 N against a 229 N floor; 17-19 s each."""
+    from bayes_sst.twin._plan import broadband_plan
+
+    plan = list(SHORT_PLAN) + broadband_plan((0.0,), ("noise",))
+    ringing = diagnose(simulate("sst-paper", seed=11, spread=0.02, plan=plan))
+    assert ringing.selected == ["oil_column"]
+    peak = ringing.oil["per_payload"][0]
+    assert peak["peak_frequency_hz"] == pytest.approx(
+        simulate(plan=broadband_plan((0.0,), ("noise",)), seed=1).tests[0].spec.extra["truth"]["resonance_hz"],
+        rel=0.03)
+    stiff = diagnose(simulate("sst-paper", seed=11, spread=0.02, plan=plan,
+                              truth_overrides={"bulk_modulus": 10 * TRUTH.bulk_modulus}))
+    assert stiff.selected == []
+    assert stiff.rms_before < 1.15 * stiff.noise_floor
+
+
 def test_local_peaks_of_a_coarse_profile_are_its_local_maxima_best_first():
     from bayes_sst.diagnosis._screen import _local_peaks
 

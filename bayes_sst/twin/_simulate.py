@@ -91,6 +91,16 @@ def _delayed(t: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
     return np.interp(t - delay, t, values)
 
 
+def _resonance_or_none(truth: TableTruth, moving_mass: float, *, Ke: float | None = None) -> float | None:
+    """The closed loop's resonance (Hz), or None where |H| has no peak near the oil column: a
+    column much stiffer than the preset's (bulk modulus ten times the oil's) is no longer
+    lightly damped by the loop's pressure feedback, and such a table is still simulated."""
+    try:
+        return closed_loop_resonance_hz(truth, moving_mass, Ke=Ke)
+    except ValueError:
+        return None
+
+
 def _test_truth(truth: TableTruth, deck: DeckParams, factors: Mapping[str, float],
                 payload_kg: float) -> dict[str, float]:
     """What the force model of this test should identify (payload included), plus the empty deck.
@@ -107,7 +117,7 @@ def _test_truth(truth: TableTruth, deck: DeckParams, factors: Mapping[str, float
         "Fmu": float(deck.Fk),
         "static_ratio": truth.static_ratio,
         "f_oil_hz": truth.f_oil_hz(float(deck.mass)),
-        "resonance_hz": closed_loop_resonance_hz(truth, float(deck.mass), Ke=float(deck.Ke)),
+        "resonance_hz": _resonance_or_none(truth, float(deck.mass), Ke=float(deck.Ke)),
         "Me_empty": float(truth.Me * factors["Me"]),
         "Fmu_empty": float(truth.Fmu * factors["Fmu"]),
     }
@@ -236,7 +246,7 @@ def simulate(
 
     Series.extra['truth'] holds the population truth; each TestSpec.extra['truth'] the
     test's own force-model parameters (payload included), its open oil-column frequency
-    f_oil_hz and its closed-loop resonance resonance_hz. A broadband test's TestSpec has no
+    f_oil_hz and its closed-loop resonance resonance_hz (None where the loop has no peak). A broadband test's TestSpec has no
     frequency_hz or amplitude_m; its extra holds signal, duration_s, peak_acceleration_m_s2,
     peak_displacement_m and sample_rate_hz.
     """
@@ -362,7 +372,7 @@ def simulate(
     }
     if any(item.is_broadband for item in items):
         twin["broadband_sample_rate_hz"] = float(broadband_sample_rate_hz)
-    population = dict(truth.population(), resonance_hz=closed_loop_resonance_hz(truth, truth.Me))
+    population = dict(truth.population(), resonance_hz=_resonance_or_none(truth, truth.Me))
     return Series(
         name=name or f"{preset_name}-twin-seed{seed}",
         tests=tuple(tests),
