@@ -1413,6 +1413,31 @@ def test_a_loop_that_only_lags_has_no_oil_column_and_a_resonance_in_band_is_foun
     assert peak["analytic_frequency_hz"] is None and peak["analytic_ratio"] is None
 
 
+@pytest.mark.parametrize("zeta, claimed", [(0.7, False), (0.6, False), (0.3, True)])
+def test_a_loop_that_tracks_as_a_second_order_response_is_an_oil_column_only_with_a_peak(zeta, claimed):
+    """A servo loop modelled as the textbook second-order tracking response, 20 Hz with zeta
+    0.7 and 2 ms of delay, has no resonance peak (|H| at most 1.0002 times its gain); it was
+    fitted at zeta 0.686 and claimed at 451,000 nats until MIN_PEAK_RISE. zeta 0.6 lifts |H| by
+    4 %, under the 10 % asked; zeta 0.3 by 75 %, an oil column."""
+    from bayes_sst.diagnosis._oil import MIN_PEAK_RISE, oil_column_check, peak_rise
+    from bayes_sst.io import Series
+
+    def loop(f, f_n=20.0):
+        return np.exp(-2j * np.pi * f * 0.002) * f_n**2 / (f_n**2 - f * f + 2j * zeta * f_n * f)
+
+    check = oil_column_check(Series("servo", (_broadband_record("B01", loop, 3),)))
+    entry = check["per_payload"][0]
+    assert check["at_bound"] is (not claimed)
+    assert entry["peak_rise"] == pytest.approx(peak_rise(entry["oil_damping"]["mean"]), rel=1e-12)
+    if claimed:
+        assert entry["oil_damping"]["mean"] == pytest.approx(0.3, rel=0.1) and entry["bound"] is None
+        assert entry["oil_frequency"]["mean"] == pytest.approx(20.0, rel=0.02)
+    else:
+        assert entry["peak_rise"] < MIN_PEAK_RISE and entry["bound"].startswith("no resonance peak")
+    # the rise by hand: zeta 0.3 -> 1/(2*0.3*sqrt(0.91)) = 1.747; no peak from 1/sqrt(2) on
+    assert peak_rise(0.3) == pytest.approx(1.7471, abs=1e-4) and peak_rise(0.75) == 1.0
+
+
 def test_the_oil_check_skips_tests_without_a_command_and_a_flat_loop_writes_as_json():
     import json
 
