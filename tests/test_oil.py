@@ -170,6 +170,56 @@ def test_second_order_system_recovers_its_natural_frequency():
     assert r.high_hz - r.low_hz < 0.02 * f_n
 
 
+def _second_order_record(test_id, fs, seed, seconds=120.0, f_n=20.0, zeta=0.05):
+    n = int(seconds * fs)
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal(n)
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    s, w_n = 2j * np.pi * f, 2.0 * np.pi * f_n
+    y = np.fft.irfft(np.fft.rfft(x) * w_n**2 / (s**2 + 2.0 * zeta * w_n * s + w_n**2), n)
+    y += 0.3 * rng.standard_normal(n)
+    t = np.arange(n) / fs
+    return TestRecord(TestSpec(test_id, f"{test_id}.csv", "broadband"), {"t": t, "u": y, "F": 0 * t, "a": y, "a_cmd": x})
+
+
+def test_tests_at_different_rates_are_pooled_on_the_bins_they_share():
+    """An independent generator recorded two broadband tests of one payload at 250 and 1000 Hz,
+    and the pooled estimate refused them (diagnose stopped there). A 2 s segment gives both
+    0.5 Hz bins: they are pooled up to the lower Nyquist, less its bin, with every segment
+    counted, and the resonance read as from either alone."""
+    slow, fast = _second_order_record("B1", 250.0, 1), _second_order_record("B2", 1000.0, 2)
+    pooled = frequency_response([fast, slow])
+    alone = frequency_response([slow])
+    np.testing.assert_allclose(pooled.frequency_hz, alone.frequency_hz[:-1])
+    assert pooled.frequency_hz[-1] == pytest.approx(124.5) and pooled.resolution_hz == pytest.approx(0.5)
+    assert pooled.n_segments == alone.n_segments + frequency_response([fast]).n_segments
+    assert pooled.tests == ("B2", "B1") and pooled.sample_rate_hz == 250.0
+    # the exact response at 10 Hz, by hand: w_n^2/(w_n^2 - w^2 + 2j*zeta*w_n*w)
+    k = int(np.argmin(np.abs(pooled.frequency_hz - 10.0)))
+    exact = 20.0**2 / (20.0**2 - 10.0**2 + 2j * 0.05 * 20.0 * 10.0)
+    assert abs(pooled.h[k] - exact) < 0.02 * abs(exact)
+    r = locate_resonance(pooled, interval="random", n_bootstrap=50)
+    assert r.fit.natural_frequency_hz == pytest.approx(20.0, rel=0.01)
+    # a rate whose 2 s segment is no whole number of samples has other bins: named, not pooled
+    odd = _second_order_record("B3", 333.3, 3, seconds=60.0)
+    with pytest.raises(ValueError, match=r"same bin spacing.*'B3'"):
+        frequency_response([slow, odd])
+
+
+def test_a_broadband_test_without_a_response_is_noted_by_the_diagnosis_not_fatal():
+    from bayes_sst.diagnosis._oil import oil_column_check
+
+    good = _second_order_record("B1", 500.0, 4, seconds=60.0)
+    short = TestRecord(TestSpec("B2", "B2.csv", "broadband", payload_kg=5000.0),
+                       {name: values[:750] for name, values in good.columns.items()})  # 1.5 s < one segment
+    skipped = []
+    check = oil_column_check(Series("mixed", (good, short)), skipped=skipped)
+    assert [p["payload_kg"] for p in check["per_payload"]] == [0.0]
+    assert len(skipped) == 1 and "['B2'] at 5000 kg" in skipped[0] and "shorter than one" in skipped[0]
+    skipped = []
+    assert oil_column_check(Series("short", (short,)), skipped=skipped) is None and len(skipped) == 1
+
+
 # --- command line ----------------------------------------------------------------------------------
 
 def _ocrf(*argv):

@@ -953,12 +953,13 @@ def _uncommanded_broadband(series: Series) -> list[str]:
 def _broadband_only(series: Series, started: float) -> Diagnosis:
     """A series with fewer than MIN_PERIODIC_TESTS periodic tests: only the oil_column check
     of its broadband tests applies."""
-    oil = oil_column_check(series)
+    oil_skipped: list[str] = []
+    oil = oil_column_check(series, skipped=oil_skipped)
     if oil is None:
         uncommanded = _uncommanded_broadband(series)
         raise ValueError(f"series {series.name!r} has neither periodic tests nor broadband tests with a command to "
                          "diagnose" + (f" (broadband tests {uncommanded} record neither u_cmd nor a_cmd)"
-                                       if uncommanded else ""))
+                                       if uncommanded else "") + "".join(f"; {reason}" for reason in oil_skipped))
     oil["shrink"] = _shrink(oil["rms_before"], oil["rms_after"], oil["noise_floor"])
     chosen = _oil_selectable(oil)
     entry = {k: v for k, v in oil.items() if k not in ("rms_before", "rms_after", "noise_floor", "shrink")}
@@ -968,7 +969,7 @@ def _broadband_only(series: Series, started: float) -> Diagnosis:
         rms_after=oil["rms_after"] if chosen else oil["rms_before"], shrink=oil["shrink"] if chosen else 0.0,
         base_shift={}, base={}, final={}, region={}, steps=[], oil=oil, stroke=None,
         timings={"total": time.perf_counter() - started}, settings={"z_select": Z_SELECT, "min_score": MIN_SCORE},
-        rms_unit="response",
+        rms_unit="response", notes=oil_skipped,
     )
 
 
@@ -1195,8 +1196,10 @@ def diagnose(
     stroke = side_views["stroke"]
 
     t0 = time.perf_counter()
-    oil = oil_column_check(series)
+    oil_skipped: list[str] = []
+    oil = oil_column_check(series, skipped=oil_skipped)
     timings["oil_column"] = time.perf_counter() - t0
+    notes.extend(oil_skipped)
     uncommanded = _uncommanded_broadband(series)
     if uncommanded:
         notes.append(f"broadband tests {uncommanded} record neither u_cmd nor a_cmd: without the command the "

@@ -131,9 +131,12 @@ def _analytic_beside(series: Series, payload: float, fitted_hz: float) -> dict[s
     return {"analytic_frequency_hz": analytic, "analytic_ratio": fitted_hz / analytic}
 
 
-def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[str, Any] | None:
+def oil_column_check(series: Series, effect: OilColumn = OilColumn(),
+                     skipped: list[str] | None = None) -> dict[str, Any] | None:
     """Score the oil_column effect on the series' broadband tests that record a command; None
-    when it has none."""
+    when it has none, or none that gives a frequency response. skipped, where given, receives
+    why a payload's tests gave none (a test shorter than one Welch segment, rates whose bins
+    do not line up); the diagnosis notes it rather than stopping there."""
     from bayes_sst.oil._frf import bin_error_correlation, frequency_response, has_command
 
     broadband = [r for r in series.tests if r.spec.kind == "broadband" and has_command(r)]
@@ -146,7 +149,13 @@ def oil_column_check(series: Series, effect: OilColumn = OilColumn()) -> dict[st
     misfit_before, misfit_after, floor_sq = [], [], []
     correlation = None
     for payload, records in sorted(groups.items()):
-        frf = frequency_response(records)
+        try:
+            frf = frequency_response(records)
+        except ValueError as exc:
+            if skipped is not None:
+                skipped.append(f"broadband tests {[r.spec.id for r in records]} at {payload:g} kg payload give no "
+                               f"frequency response ({exc}); the oil column is not checked on them")
+            continue
         f = frf.frequency_hz
         eps = frf.random_error()
         usable = ((f >= BAND_HZ[0]) & (f <= BAND_HZ[1]) & (frf.coherence >= MIN_COHERENCE)

@@ -135,8 +135,13 @@ def frequency_response(
 
     segment_s: Welch segment length, s (resolution 1/segment_s Hz); overlap: fraction of a
     segment shared with the next. signals: the (input, output) column pair; by default the
-    best pair every test records, (a_cmd, a) before (u_cmd, u). The tests must share one
-    sample rate.
+    best pair every test records, (a_cmd, a) before (u_cmd, u).
+
+    Tests recorded at different rates are pooled on the bins they share, up to the lowest
+    Nyquist frequency: a segment of segment_s seconds gives every rate the same bin spacing
+    1/segment_s, and the one-sided densities are per hertz whatever the rate. Rates for which
+    segment_s*fs is not a whole number of samples have a different spacing and are refused.
+    sample_rate_hz and segment_samples are then the lowest rate's.
     """
     records = list(records)
     if not records:
@@ -145,26 +150,38 @@ def frequency_response(
         raise ValueError(f"overlap must lie in [0, 1), got {overlap!r}")
     if signals is None:
         signals = common_signals(records)
-    rates = {round(r.sample_rate_hz, 6) for r in records}
-    if len(rates) != 1:
-        raise ValueError(f"tests pooled into one frequency response must share a sample rate, got {sorted(rates)} Hz")
+    ids = tuple(r.id for r in records)
+    # the lowest rate first: its grid is the one every test shares (less its Nyquist bin where
+    # the rates differ, which the one-sided density counts once at that rate and twice above it)
+    records = sorted(records, key=lambda r: r.sample_rate_hz)
+    mixed = len({round(r.sample_rate_hz, 6) for r in records}) > 1
     fs = float(records[0].sample_rate_hz)
     segment = int(round(segment_s * fs))
-    overlap_samples = int(round(overlap * segment))
     if segment < 16:
         raise ValueError(f"a {segment_s} s segment holds only {segment} samples at {fs:g} Hz")
+    spacing = fs / segment
     x_name, y_name = signals
-    sums = None
+    sums, f = None, None
     n_total = 0
     for record in records:
+        rate = float(record.sample_rate_hz)
+        samples = int(round(segment_s * rate))
+        if abs(rate / samples - spacing) > 1e-9 * spacing:
+            raise ValueError(f"tests pooled into one frequency response need the same bin spacing: a {segment_s} s "
+                             f"segment gives {spacing:.6g} Hz at {fs:g} Hz but {rate / samples:.6g} Hz at {rate:g} Hz "
+                             f"(test {record.id!r})")
+        overlap_samples = int(round(overlap * samples))
         x = np.asarray(record.get(x_name), dtype=float)
         y = np.asarray(record.get(y_name), dtype=float)
-        count = segment_count(len(x), segment, overlap_samples)
+        count = segment_count(len(x), samples, overlap_samples)
         if count == 0:
-            raise ValueError(f"test {record.id!r} is {len(x) / fs:.3g} s long, shorter than one "
+            raise ValueError(f"test {record.id!r} is {len(x) / rate:.3g} s long, shorter than one "
                              f"{segment_s} s segment")
-        f, s_xx, s_yy, s_xy = _spectra(x, y, fs, segment, overlap_samples)
-        part = (count * s_xx, count * s_yy, count * s_xy)
+        f_test, s_xx, s_yy, s_xy = _spectra(x, y, rate, samples, overlap_samples)
+        if f is None:
+            f = f_test[:-1] if mixed else f_test
+        n = len(f)
+        part = (count * s_xx[:n], count * s_yy[:n], count * s_xy[:n])
         sums = part if sums is None else tuple(a + b for a, b in zip(sums, part))
         n_total += count
     s_xx, s_yy, s_xy = (s / n_total for s in sums)
@@ -185,7 +202,7 @@ def frequency_response(
         segment_samples=segment,
         input=x_name,
         output=y_name,
-        tests=tuple(r.id for r in records),
+        tests=ids,
     )
 
 
