@@ -60,8 +60,10 @@ def seeded_cases(effects):
 VALVE_CASES = seeded_cases(EFFECT_CASES)
 # the eighth (2026-12-02) also withholds a low oil column, seen in a broadband test
 EIGHTH_CASES = seeded_cases(EFFECT_CASES + ("oil_column",))
+# the ninth (2026-12-02: model-following loop, Karnopp/Stribeck friction, a broadband test on oil_column)
+NINTH_CASES = seeded_cases(EFFECT_CASES + ("oil_column",))
 GENERATORS = {"lugre": ("lugre_generator", LUGRE_CASES), "valve": ("valve_generator", VALVE_CASES),
-              "eighth": ("eighth_generator", EIGHTH_CASES)}
+              "eighth": ("eighth_generator", EIGHTH_CASES), "ninth": ("ninth_generator", NINTH_CASES)}
 
 
 def main():
