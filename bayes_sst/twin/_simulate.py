@@ -92,9 +92,8 @@ def _delayed(t: np.ndarray, values: np.ndarray, delay: float) -> np.ndarray:
 
 
 def _resonance_or_none(truth: TableTruth, moving_mass: float, *, Ke: float | None = None) -> float | None:
-    """The closed loop's resonance (Hz), or None where |H| has no peak near the oil column: a
-    column much stiffer than the preset's (bulk modulus ten times the oil's) is no longer
-    lightly damped by the loop's pressure feedback, and such a table is still simulated."""
+    """The closed loop's resonance (Hz), or None where |H| has no peak between 0.2 and 2 f_oil
+    (a column ten times stiffer than the preset's): such a table is still simulated."""
     try:
         return closed_loop_resonance_hz(truth, moving_mass, Ke=Ke)
     except ValueError:
@@ -246,9 +245,9 @@ def simulate(
 
     Series.extra['truth'] holds the population truth; each TestSpec.extra['truth'] the
     test's own force-model parameters (payload included), its open oil-column frequency
-    f_oil_hz and its closed-loop resonance resonance_hz (None where the loop has no peak). A broadband test's TestSpec has no
-    frequency_hz or amplitude_m; its extra holds signal, duration_s, peak_acceleration_m_s2,
-    peak_displacement_m and sample_rate_hz.
+    f_oil_hz and its closed-loop resonance resonance_hz (None where the loop has no peak). A
+    broadband test's TestSpec has no frequency_hz or amplitude_m; its extra holds signal,
+    duration_s, peak_acceleration_m_s2, peak_displacement_m and sample_rate_hz.
     """
     truth = preset_truth(preset).replace(truth_overrides)
     if plan is None:
