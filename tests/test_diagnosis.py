@@ -670,6 +670,16 @@ def test_text_output_says_what_the_shrink_is_a_share_of_and_survives_a_missing_s
         {"given": [], "candidates": [], "chosen": "drift", "rule": "score_z"},
         {"given": [], "candidates": [], "chosen": "drift", "rule": "coefficient_z", "view": "stroke_check"}]))
     assert "score >= 12 nats and >= 2.5 se" in next(line for line in checked.splitlines() if line.startswith(" * drift"))
+    # an unselected reading on its bound says so, and the oil column says what its nats are of
+    oil = {"name": "oil_column", "score": 5531.7, "score_se": 401.1, "at_bound": True,
+           "domain": "command-to-motion frequency response of the broadband tests",
+           "params": {"oil_frequency": {"mean": 21.0}},
+           "per_payload": [{"bound": "no resonance peak: |H| rises 0.0 % (under 10 %)"}]}
+    line = next(line for line in format_diagnosis(dict(data, ranking=data["ranking"] + [oil])).splitlines()
+                if line.startswith("   oil_column"))
+    assert line.endswith("(on its bound, the base model: no resonance peak: |H| rises 0.0 % (under 10 %); nats of the "
+                         "command-to-motion frequency response of the broadband tests)")
+    assert "on its bound" not in next(line for line in text.splitlines() if line.startswith(" * drift"))
 
 
 def test_effect_data_leaves_out_an_acceleration_the_signals_refused():
@@ -1514,6 +1524,28 @@ def test_broadband_tests_on_a_clean_twin_claim_its_oil_column_only_where_it_ring
                               truth_overrides={"bulk_modulus": 10 * TRUTH.bulk_modulus}))
     assert stiff.selected == []
     assert stiff.rms_before < 1.15 * stiff.noise_floor
+
+
+def test_a_reading_on_its_bound_ranks_after_every_other_unselected_effect():
+    """The ninth simulator's weak cubic stiffness (2026-12-02): nothing selected, the oil
+    column's smooth-loop fit (no peak, on its bound) at 5,532 nats stood first by score, above
+    the withheld cubic term's 3.7. Selected effects keep their selection order; among the rest
+    a bound reading comes last whatever its score."""
+    from bayes_sst.diagnosis._diagnose import ranked
+
+    def entry(name, score, at_bound=False):
+        return {"name": name, "score": score, "score_se": 1.0, "at_bound": at_bound}
+
+    ninth_weak_cubic = [entry("nonlinear_stiffness", 3.7), entry("channel_delay", 0.3),
+                        entry("specimen", 0.0, at_bound=True), entry("oil_column", 5531.7, at_bound=True),
+                        entry("drift", -1.2)]
+    assert [r["name"] for r in ranked(ninth_weak_cubic, [])] == [
+        "nonlinear_stiffness", "channel_delay", "drift", "oil_column", "specimen"]
+    # a selected effect leads even on a bound-free lower score; the selection order is kept
+    mixed = [entry("oil_column", 900.0), entry("stiction", 12.0), entry("drift", 40.0),
+             entry("specimen", 0.0, at_bound=True)]
+    assert [r["name"] for r in ranked(mixed, ["stiction", "oil_column"])] == [
+        "stiction", "oil_column", "drift", "specimen"]
 
 
 def test_local_peaks_of_a_coarse_profile_are_its_local_maxima_best_first():

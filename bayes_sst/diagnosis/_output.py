@@ -132,12 +132,25 @@ def format_diagnosis(data: dict) -> str:
             view += (f"; scored with {', '.join(r['given'])} in its model)" if r.get("given") else ")")
         rule = (f"  [selected: {rule_words(rules[r['name']], data.get('settings', {}))}]"
                 if mark == "*" and r["name"] in rules else "")
-        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}")
+        lines.append(f" {mark} {r['name']:20s} {r['score']:9.1f} +- {r['score_se']:6.1f}   {params}{view}{rule}"
+                     + _aside(r, selected=mark == "*"))
     if data["selected"]:
         lines += ["", "base parameters moved by the selected effect(s): "
                   + ", ".join(f"{k} {100 * v:+.1f} %" if v is not None else f"{k} n/a"
                               for k, v in data["base_shift"].items())]
     return "\n".join(lines)
+
+
+def _aside(entry: dict, *, selected: bool) -> str:
+    """What the ranking line of an unselected effect needs beside its score: that its reading is
+    the base model (on its bound), and, for a score not from the force model, what it scores."""
+    words = []
+    if entry.get("at_bound") and not selected:
+        bounds = [p["bound"] for p in entry.get("per_payload", []) if p.get("bound")]
+        words.append("on its bound, the base model" + (f": {bounds[0]}" if bounds else ""))
+    if entry.get("domain"):
+        words.append(f"nats of the {entry['domain']}")
+    return f"  ({'; '.join(words)})" if words else ""
 
 
 def _png(fig) -> str:
