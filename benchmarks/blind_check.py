@@ -62,8 +62,12 @@ VALVE_CASES = seeded_cases(EFFECT_CASES)
 EIGHTH_CASES = seeded_cases(EFFECT_CASES + ("oil_column",))
 # the ninth (2026-12-02: model-following loop, Karnopp/Stribeck friction, a broadband test on oil_column)
 NINTH_CASES = seeded_cases(EFFECT_CASES + ("oil_column",))
+# the tenth (2026-12-02: force from chamber pressures with pump ripple, DAQ clock skew, binary
+# record rates, a well-damped loop around an in-band oil column)
+TENTH_CASES = seeded_cases(EFFECT_CASES + ("oil_column",))
 GENERATORS = {"lugre": ("lugre_generator", LUGRE_CASES), "valve": ("valve_generator", VALVE_CASES),
-              "eighth": ("eighth_generator", EIGHTH_CASES), "ninth": ("ninth_generator", NINTH_CASES)}
+              "eighth": ("eighth_generator", EIGHTH_CASES), "ninth": ("ninth_generator", NINTH_CASES),
+              "tenth": ("tenth_generator", TENTH_CASES)}
 
 
 def main():
