@@ -1,9 +1,10 @@
 """Fit and diagnose the blind generators' series: six clean series and, for each of six
 effects, a clear and a weak case, from benchmarks/lugre_generator.py (LuGre friction, written
 2026-11-26), benchmarks/valve_generator.py (servo-valve and two-chamber cylinder, DAQ
-anti-alias filter, ADC and mains hum, written 2026-11-27) or benchmarks/eighth_generator.py
-(written 2026-12-02; a seventh effect, a low oil column, in a broadband test), each by a
-helper session that saw the data format and the physics but not this package.
+anti-alias filter, ADC and mains hum, written 2026-11-27), benchmarks/eighth_generator.py
+(written 2026-12-02; a seventh effect, a low oil column, in a broadband test),
+benchmarks/ninth_generator.py or benchmarks/tenth_generator.py (both 2026-12-02; benchmarks/README.md),
+each by a helper session that saw the data format and the physics but not this package.
 
     PYTHONPATH=. .venv/bin/python benchmarks/blind_check.py --generator lugre --dir /tmp/lugre \
         --out benchmarks/results/lugre_check.json
