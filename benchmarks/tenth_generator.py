@@ -704,17 +704,6 @@ def generate(seed: int, out: str, effect: str | None = None, size: str | None = 
         print(f"{out}: {len(tests)} tests, {p['rate']} Hz, effect {effect} {size}, "
               f"ratio {e_rms / n_rms:.3f}, H_lin {c0['H_peak']:.3f}@{c0['H_peak_hz']:.1f}Hz, "
               f"emp {emp}, {truth['seconds']} s", flush=True)
-    truth["_res"] = res  # internal, stripped by callers; not written
-    truth["_tests"] = tests
-    return _public(truth)
-
-
-_LAST = {}
-
-
-def _public(truth):
-    _LAST["res"] = truth.pop("_res")
-    _LAST["tests"] = truth.pop("_tests")
     return truth
 
 
